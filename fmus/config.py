@@ -1,0 +1,200 @@
+"""Observer FMUs for the user's own LTI plant, from a small TOML file.
+
+Example (the ship of paper 002, shipped as ``fmus/scenarios/ship/ship.toml``)::
+
+    name = "ship"                  # FMU names: ship_plant, ship_observer, ship_controller
+    description = "..."            # optional
+
+    [plant]                        # x' = A x + B u, y = C x + D u
+    A = [[0, 1], [-2, 3]]
+    B = [[0], [1]]
+    C = [[1, 0]]
+    x0 = [0.05, 0.2]               # optional, default 0
+    state_units = ["rad", "rad/s"] # optional (also input_units, output_units)
+    fmu = true                     # also build the plant FMU (default true)
+
+    [observer]                     # exactly one of: poles, t_settle, N
+    t_settle = 0.15                # settling time of the estimation error, s
+    form = "binomial"              # or "butterworth"
+    x_hat0 = [0, 0]
+
+    [controller]                   # optional: state feedback u = -K x_hat + r
+    t_settle = 0.3                 # or poles = [...] or K = [[...]]
+
+Every error names the field it comes from (``plant.A: expected a square
+matrix ...``); dimensions, finiteness, observability/controllability and the
+stability of the designed gains are all checked before anything is built.
+"""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from observers.checks import ParameterError, as_matrix, as_vector, require_hurwitz
+from observers.lti_model import StateSpace
+from observers.modal import (controllability_matrix, desired_poles, observability_matrix, observer_gain,
+                             place)
+from observers.standard_forms import FORMS
+
+from .definition import FmuDefinition, valid_identifier
+from .kinds.linear import feedback_definition, observer_definition, plant_definition
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+__all__ = ["LinearDesign", "load_config", "design_from_config"]
+
+_SECTIONS = {
+    "": {"name", "description", "plant", "observer", "controller"},
+    "plant": {"A", "B", "C", "D", "x0", "state_units", "input_units", "output_units", "fmu"},
+    "observer": {"poles", "t_settle", "form", "N", "x_hat0"},
+    "controller": {"poles", "t_settle", "form", "K"},
+}
+
+
+@dataclass
+class LinearDesign:
+    """A checked plant model with its designed observer (and optional controller)."""
+
+    name: str
+    description: str
+    model: StateSpace
+    x0: np.ndarray
+    units: dict
+    N: np.ndarray
+    observer_poles: np.ndarray
+    x_hat0: np.ndarray
+    K: np.ndarray | None
+    controller_poles: np.ndarray | None
+    build_plant: bool
+
+    def definitions(self) -> list[FmuDefinition]:
+        """FMU definitions: observer, then plant and controller when requested."""
+        text = self.description
+        result = [observer_definition(f"{self.name}_observer", self.model, self.N, self.x_hat0,
+                                      self.units, "", self.observer_poles)]
+        if self.build_plant:
+            result.append(plant_definition(f"{self.name}_plant", self.model, self.x0, self.units,
+                                           f"{text} -- plant" if text else ""))
+        if self.K is not None:
+            result.append(feedback_definition(f"{self.name}_controller", self.K, self.units, ""))
+        return result
+
+
+def load_config(path: Path | str) -> dict:
+    """Read a TOML design file; syntax errors name the file and line."""
+    path = Path(path)
+    try:
+        with open(path, "rb") as handle:
+            return tomllib.load(handle)
+    except FileNotFoundError:
+        raise ParameterError(f"config: file {path} does not exist") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ParameterError(f"config {path}: {exc}") from None
+
+
+def _check_keys(section: str, table) -> None:
+    if not isinstance(table, dict):
+        raise ParameterError(f"{section}: expected a table, got {table!r}")
+    unknown = set(table) - _SECTIONS[section]
+    if unknown:
+        where = f"{section}." if section else ""
+        raise ParameterError(f"{where}{sorted(unknown)[0]}: unknown field; expected one of "
+                             f"{sorted(_SECTIONS[section])}")
+
+
+def _units(plant: dict, model: StateSpace) -> dict:
+    units = {}
+    for key, size in (("state_units", model.n), ("input_units", model.m), ("output_units", model.p)):
+        if key in plant:
+            values = plant[key]
+            if not (isinstance(values, list) and len(values) == size and all(isinstance(v, str) for v in values)):
+                raise ParameterError(f"plant.{key}: expected {size} unit strings, got {values!r}")
+            units[key] = values
+    return units
+
+
+def _gain(section: str, table: dict, n: int, gain_name: str, shape, designer):
+    """A gain given directly (checked) or designed from poles / t_settle."""
+    chosen = [key for key in ("poles", "t_settle", gain_name) if key in table]
+    if len(chosen) != 1:
+        raise ParameterError(f"{section}: give exactly one of 'poles', 't_settle' or '{gain_name}', "
+                             f"got {chosen or 'none'}")
+    form = table.get("form", "binomial")
+    if form not in FORMS:
+        raise ParameterError(f"{section}.form: unknown standard form {form!r}; choose one of {FORMS}")
+    if gain_name in table:
+        return as_matrix(f"{section}.{gain_name}", table[gain_name], shape=shape), None
+    try:
+        poles = desired_poles(n, poles=table.get("poles"), t_settle=table.get("t_settle"), form=form,
+                              name=f"{section}.poles")
+        return designer(poles), poles
+    except ParameterError as exc:
+        message = str(exc)
+        raise ParameterError(message if message.startswith(section) else f"{section}.{message}") from None
+
+
+def design_from_config(config: dict) -> LinearDesign:
+    """Check a parsed config and design its gains; raises :class:`ParameterError` naming the field."""
+    _check_keys("", config)
+    name = config.get("name")
+    if not isinstance(name, str) or not valid_identifier(name):
+        raise ParameterError(f"name: expected an identifier (letters, digits, _), got {name!r}")
+    for section in ("plant", "observer"):
+        if section not in config:
+            raise ParameterError(f"{section}: missing section [{section}]")
+    plant, observer = config["plant"], config["observer"]
+    _check_keys("plant", plant)
+    _check_keys("observer", observer)
+    for key in ("A", "C"):
+        if key not in plant:
+            raise ParameterError(f"plant.{key}: missing")
+    model = StateSpace.checked(plant["A"], plant.get("B"), plant["C"], plant.get("D"), prefix="plant.")
+    n = model.n
+    if np.linalg.matrix_rank(observability_matrix(model.A, model.C)) < n:
+        raise ParameterError("plant.C: the pair (plant.A, plant.C) is not observable; "
+                             "no observer can reconstruct the state")
+    N, observer_poles = _gain("observer", observer, n, "N", (n, model.p),
+                              lambda poles: observer_gain(model.A, model.C, poles))
+    require_hurwitz("observer.N (A - N C)", model.A - N @ model.C)
+    if observer_poles is None:
+        observer_poles = np.linalg.eigvals(model.A - N @ model.C)
+
+    K = controller_poles = None
+    if "controller" in config:
+        controller = config["controller"]
+        _check_keys("controller", controller)
+        if model.m == 0:
+            raise ParameterError("controller: the plant has no input (plant.B missing)")
+        if np.linalg.matrix_rank(controllability_matrix(model.A, model.B)) < n:
+            raise ParameterError("plant.B: the pair (plant.A, plant.B) is not controllable; "
+                                 "state feedback cannot place the poles")
+        K, controller_poles = _gain("controller", controller, n, "K", (model.m, n),
+                                    lambda poles: place(model.A, model.B, poles))
+        require_hurwitz("controller.K (A - B K)", model.A - model.B @ K)
+
+    build_plant = plant.get("fmu", True)
+    if not isinstance(build_plant, bool):
+        raise ParameterError(f"plant.fmu: expected true or false, got {build_plant!r}")
+    description = config.get("description", "")
+    if not isinstance(description, str):
+        raise ParameterError("description: expected a string")
+    return LinearDesign(
+        name=name,
+        description=description,
+        model=model,
+        x0=as_vector("plant.x0", plant.get("x0", np.zeros(n)), n),
+        units=_units(plant, model),
+        N=N,
+        observer_poles=np.asarray(observer_poles),
+        x_hat0=as_vector("observer.x_hat0", observer.get("x_hat0", np.zeros(n)), n),
+        K=K,
+        controller_poles=controller_poles,
+        build_plant=build_plant,
+    )

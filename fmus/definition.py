@@ -1,0 +1,125 @@
+"""What an FMU is made of, as data: the JSON file bundled in every FMU.
+
+An :class:`FmuDefinition` names a *kind* (a block factory registered in
+:mod:`fmus.kinds`), the start values of its parameters and the ports of the
+block.  The builder writes it next to a two-line slave module; the generic
+slave (:mod:`fmus.slave`) reads it back when the FMU is instantiated.
+
+Naming (Modelica arrays, fixed when the FMU is built):
+
+* a vector ``x`` of size n is ``x[1] .. x[n]``; a matrix ``A`` is ``A[i,j]``;
+* a signal dimension of size one is dropped: for a single-input,
+  single-output plant ``u``/``y`` are scalars, ``B`` (n x 1) is ``B[i]``,
+  ``C`` (1 x n) is ``C[j]``, ``N`` (n x 1) is ``N[i]``, ``K`` (1 x n) is ``K[j]``.
+  State dimensions are never dropped: ``x[1]`` even when n = 1.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from dataclasses import asdict, dataclass, field
+from itertools import product
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+__all__ = ["Port", "Parameter", "FmuDefinition", "element_names", "element_unit", "valid_identifier"]
+
+Unit = str | list[str] | None  #: one unit for every element, or one per element
+
+_IDENTIFIER = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+
+
+def valid_identifier(name: str) -> bool:
+    return bool(_IDENTIFIER.match(name))
+
+
+def element_unit(unit: Unit, index: int) -> str | None:
+    """Unit of element ``index`` (flat) of an array whose unit is ``unit``."""
+    return unit[index] if isinstance(unit, list) else unit
+
+
+def element_names(name: str, shape: tuple[int, ...]) -> list[str]:
+    """Scalar FMI names of an array, row-major: ``A[1,1], A[1,2], ...``."""
+    if len(shape) == 0:
+        return [name]
+    return [f"{name}[{','.join(str(i + 1) for i in index)}]"
+            for index in product(*(range(s) for s in shape))]
+
+
+@dataclass
+class Port:
+    """An input or output of a block: a 1-D signal of ``size`` entries."""
+
+    name: str
+    size: int
+    description: str
+    unit: Unit = None
+    scalar: bool = False  #: named without index (requires size 1)
+
+    @property
+    def naming_shape(self) -> tuple[int, ...]:
+        return () if self.scalar else (self.size,)
+
+    @property
+    def element_names(self) -> list[str]:
+        return element_names(self.name, self.naming_shape)
+
+
+@dataclass
+class Parameter:
+    """A parameter array; every element becomes one FMI parameter."""
+
+    name: str
+    value: list  #: flat, row-major
+    shape: list[int]  #: shape handed to the block factory
+    naming_shape: list[int]  #: shape used for the FMI names (signal singletons dropped)
+    description: str
+    unit: Unit = None
+
+    @classmethod
+    def of(cls, name: str, value, description: str, unit: Unit = None,
+           drop_axes: tuple[int, ...] = ()) -> "Parameter":
+        """Parameter from an array; ``drop_axes`` lists signal axes dropped from names when of size 1."""
+        array = np.asarray(value, dtype=float)
+        naming = [s for axis, s in enumerate(array.shape) if not (axis in drop_axes and s == 1)]
+        return cls(name, array.ravel().tolist(), list(array.shape), naming, description, unit)
+
+    @property
+    def element_names(self) -> list[str]:
+        return element_names(self.name, tuple(self.naming_shape))
+
+    def array(self, flat_values) -> np.ndarray:
+        return np.asarray(flat_values, dtype=float).reshape(self.shape)
+
+
+@dataclass
+class FmuDefinition:
+    """Everything the generic slave needs to expose a block as an FMU."""
+
+    model_name: str
+    kind: str
+    description: str
+    parameters: list[Parameter]
+    inputs: list[Port]
+    outputs: list[Port]
+    feedthrough: bool = False  #: outputs depend on the current inputs
+    options: dict[str, Any] = field(default_factory=dict)
+    default_experiment: dict[str, float] | None = None
+
+    def to_json(self) -> str:
+        return json.dumps(asdict(self), indent=1)
+
+    @classmethod
+    def from_json(cls, text: str) -> "FmuDefinition":
+        data = json.loads(text)
+        data["parameters"] = [Parameter(**p) for p in data["parameters"]]
+        data["inputs"] = [Port(**p) for p in data["inputs"]]
+        data["outputs"] = [Port(**p) for p in data["outputs"]]
+        return cls(**data)
+
+    @classmethod
+    def load(cls, path: Path) -> "FmuDefinition":
+        return cls.from_json(Path(path).read_text())

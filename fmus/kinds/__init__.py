@@ -1,0 +1,56 @@
+"""Registry of block kinds: how an FMU's parameters become a block.
+
+A kind is a factory ``factory(params, options) -> Block`` where ``params``
+maps each parameter name to its array (full shape) and ``options`` holds the
+non-numeric build settings of the definition.  Factories are looked up by
+name from a fixed table -- never by evaluating a string.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from observers.block import Block
+from observers.checks import ParameterError
+
+Factory = Callable[[dict[str, np.ndarray], dict[str, Any]], Block]
+
+_FACTORIES: dict[str, Factory] = {}
+
+
+def register(name: str) -> Callable[[Factory], Factory]:
+    """Decorator: make ``factory`` available under the kind ``name``."""
+    def decorate(factory: Factory) -> Factory:
+        if name in _FACTORIES:
+            raise RuntimeError(f"kind {name!r} registered twice")
+        _FACTORIES[name] = factory
+        return factory
+    return decorate
+
+
+def create_block(kind: str, params: dict[str, np.ndarray], options: dict[str, Any]) -> Block:
+    """Build the block of ``kind``; unknown kinds are a :class:`ParameterError`."""
+    try:
+        factory = _FACTORIES[kind]
+    except KeyError:
+        raise ParameterError(f"kind: unknown block kind {kind!r}; known: {sorted(_FACTORIES)}") from None
+    return factory(params, options)
+
+
+def known_kinds() -> list[str]:
+    return sorted(_FACTORIES)
+
+
+def _register_all() -> None:
+    """Import every module of this package; each registers its kinds on import."""
+    import importlib
+    import pkgutil
+
+    for module in pkgutil.iter_modules(__path__):
+        importlib.import_module(f"{__name__}.{module.name}")
+
+
+_register_all()

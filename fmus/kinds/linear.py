@@ -1,0 +1,116 @@
+"""Kinds for linear models (paper 002): LTI plant, Luenberger observer, state feedback.
+
+Each kind has a factory (FMU parameters -> block) and a definition function
+(design-time data -> :class:`~fmus.definition.FmuDefinition`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from observers.feedback import StateFeedback
+from observers.luenberger import LuenbergerObserver
+from observers.lti_model import StateSpace
+from plants.lti import LTIPlant
+
+from ..definition import FmuDefinition, Parameter, Port
+from . import register
+
+__all__ = ["plant_definition", "observer_definition", "feedback_definition"]
+
+@register("lti-plant")
+def _lti_plant(p, options):
+    return LTIPlant(p["A"], p["B"], p["C"], p["D"], p["x0"])
+
+
+@register("luenberger-observer")
+def _luenberger(p, options):
+    return LuenbergerObserver(p["A"], p["B"], p["C"], p["N"], p["x_hat0"], p["D"])
+
+
+@register("state-feedback")
+def _state_feedback(p, options):
+    return StateFeedback(p["K"])
+
+
+def _vector_unit(units: dict, key: str):
+    """Units of a vector: one string when all entries share it, else the list (or None)."""
+    values = units.get(key) or None
+    if values and len(set(values)) == 1:
+        return values[0]
+    return values
+
+
+def _model_parameters(model: StateSpace) -> list[Parameter]:
+    return [
+        Parameter.of("A", model.A, "state matrix of x' = A x + B u"),
+        Parameter.of("B", model.B, "input matrix of x' = A x + B u", drop_axes=(1,)),
+        Parameter.of("C", model.C, "output matrix of y = C x + D u", drop_axes=(0,)),
+        Parameter.of("D", model.D, "feedthrough matrix of y = C x + D u", drop_axes=(0, 1)),
+    ]
+
+
+def _signal_ports(model: StateSpace, units: dict) -> tuple[Port, Port]:
+    u = Port("u", model.m, "plant input u", _vector_unit(units, "input_units"), scalar=model.m == 1)
+    y = Port("y", model.p, "measured output y = C x + D u", _vector_unit(units, "output_units"),
+             scalar=model.p == 1)
+    return u, y
+
+
+def plant_definition(model_name: str, model: StateSpace, x0, units: dict, description: str) -> FmuDefinition:
+    """LTI plant FMU: parameters A, B, C, D, x0; input u; outputs y and the true state x."""
+    u, y = _signal_ports(model, units)
+    return FmuDefinition(
+        model_name=model_name,
+        kind="lti-plant",
+        feedthrough=bool(np.any(model.D)),
+        description=description or "LTI plant x' = A x + B u, y = C x + D u (exact step for linear inputs)",
+        parameters=_model_parameters(model) + [
+            Parameter.of("x0", x0, "initial state x(0)", _vector_unit(units, "state_units")),
+        ],
+        inputs=[u],
+        outputs=[y, Port("x", model.n, "true state x", _vector_unit(units, "state_units"))],
+    )
+
+
+def observer_definition(model_name: str, model: StateSpace, N, x_hat0, units: dict,
+                        description: str, poles) -> FmuDefinition:
+    """Luenberger observer FMU: parameters A, B, C, D, N, x_hat0; inputs u, y; outputs x_hat, y_hat."""
+    u, y = _signal_ports(model, units)
+    poles_text = ", ".join(f"{complex(p):.6g}".strip("()").replace("+0j", "") for p in poles)
+    return FmuDefinition(
+        model_name=model_name,
+        kind="luenberger-observer",
+        feedthrough=bool(np.any(model.D)),
+        description=description or f"Luenberger observer x_hat' = A x_hat + B u + N (y - C x_hat - D u), "
+                                   f"eig(A - N C) = [{poles_text}]",
+        parameters=_model_parameters(model) + [
+            Parameter.of("N", N, "observer gain (eig(A - N C) Hurwitz)", drop_axes=(1,)),
+            Parameter.of("x_hat0", x_hat0, "initial estimate x_hat(0)", _vector_unit(units, "state_units")),
+        ],
+        inputs=[u, y],
+        outputs=[
+            Port("x_hat", model.n, "state estimate x_hat", _vector_unit(units, "state_units")),
+            Port("y_hat", model.p, "output estimate C x_hat + D u", _vector_unit(units, "output_units"),
+                 scalar=model.p == 1),
+        ],
+    )
+
+
+def feedback_definition(model_name: str, K, units: dict, description: str) -> FmuDefinition:
+    """State-feedback FMU ``u = -K x_hat + r``."""
+    K = np.asarray(K, dtype=float)
+    m, n = K.shape
+    u_unit = _vector_unit(units, "input_units")
+    return FmuDefinition(
+        model_name=model_name,
+        kind="state-feedback",
+        feedthrough=True,
+        description=description or "modal state feedback u = -K x_hat + r",
+        parameters=[Parameter.of("K", K, "state-feedback gain (eig(A - B K) Hurwitz)", drop_axes=(0,))],
+        inputs=[
+            Port("x_hat", n, "state estimate", _vector_unit(units, "state_units")),
+            Port("r", m, "reference input added to -K x_hat", u_unit, scalar=m == 1),
+        ],
+        outputs=[Port("u", m, "control u = -K x_hat + r", u_unit, scalar=m == 1)],
+    )

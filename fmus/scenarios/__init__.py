@@ -1,0 +1,132 @@
+"""Scenarios: the papers' examples as co-simulations of FMUs.
+
+A :class:`Scenario` lists the FMUs it needs (as definitions, built on
+demand into the build directory), the instances and connections, and the
+defaults a user should not have to know: stop time, communication step,
+order and coupling -- each chosen against the scenario's monolithic
+reference and documented in its module.  :func:`run` builds what is
+missing, applies ``--set`` overrides and co-simulates.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..builder import build_fmu, is_current
+from ..definition import FmuDefinition
+from ..master import Component, Connection, SimulationError, System, cosimulate
+from ..result import Result
+
+__all__ = ["Scenario", "Summary", "SCENARIOS", "get", "ensure_fmus", "run", "parse_overrides"]
+
+
+@dataclass
+class Summary:
+    """What ``obsfmu run`` prints: a few lines of text and the numbers behind them."""
+
+    lines: list[str]
+    metrics: dict[str, float] = field(default_factory=dict)
+
+    def __str__(self) -> str:
+        return "\n".join(self.lines)
+
+
+@dataclass
+class Scenario:
+    name: str
+    description: str
+    definitions: Callable[[], list[FmuDefinition]]
+    #: (instance name, model name, start values)
+    components: list[tuple[str, str, dict[str, float]]]
+    connections: list[Connection]
+    stop_time: float
+    step: float
+    order: str = "gauss-seidel"
+    coupling: str = "linear"
+    summarize: Callable[[Result], Summary] | None = None
+    plot: Callable[[Result, Path], None] | None = None
+
+
+def _registry() -> dict[str, Scenario]:
+    """Every sub-package of this package that defines ``SCENARIO`` (or ``SCENARIOS``)."""
+    import importlib
+    import pkgutil
+
+    found: dict[str, Scenario] = {}
+    for module_info in sorted(pkgutil.iter_modules(__path__), key=lambda m: m.name):
+        module = importlib.import_module(f"{__name__}.{module_info.name}")
+        for scenario in getattr(module, "SCENARIOS", [getattr(module, "SCENARIO", None)]):
+            if scenario is not None:
+                if scenario.name in found:
+                    raise RuntimeError(f"scenario {scenario.name!r} defined twice")
+                found[scenario.name] = scenario
+    return found
+
+
+SCENARIOS: dict[str, Scenario] = _registry()
+
+
+def get(name: str) -> Scenario:
+    try:
+        return SCENARIOS[name]
+    except KeyError:
+        raise SimulationError(f"unknown scenario {name!r}; available: {', '.join(SCENARIOS)}") from None
+
+
+def ensure_fmus(scenario: Scenario, build_dir: Path, force: bool = False) -> dict[str, Path]:
+    """Build the scenario's FMUs into ``build_dir`` unless current ones are there."""
+    paths = {}
+    for definition in scenario.definitions():
+        path = Path(build_dir) / f"{definition.model_name}.fmu"
+        if force or not is_current(path, definition):
+            build_fmu(definition, build_dir)
+        paths[definition.model_name] = path
+    return paths
+
+
+_OVERRIDE = re.compile(r"^(?P<instance>[A-Za-z_]\w*)\.(?P<variable>[^=]+)=(?P<value>.+)$")
+
+
+def parse_overrides(items: list[str]) -> list[tuple[str, str, float]]:
+    """``["plant.x0[1]=0.1", ...]`` -> ``[("plant", "x0[1]", 0.1), ...]`` (values are numbers)."""
+    parsed = []
+    for item in items:
+        match = _OVERRIDE.match(item.strip())
+        if not match:
+            raise SimulationError(f"--set {item!r}: expected INSTANCE.VARIABLE=VALUE")
+        try:
+            value = float(match["value"])
+        except ValueError:
+            raise SimulationError(f"--set {item!r}: {match['value']!r} is not a number") from None
+        parsed.append((match["instance"], match["variable"].strip(), value))
+    return parsed
+
+
+def system(scenario: Scenario, fmus: dict[str, Path], overrides=()) -> System:
+    """The scenario's system with ``overrides`` applied to the start values."""
+    components = [Component(instance, fmus[model], dict(start)) for instance, model, start in scenario.components]
+    by_name = {c.name: c for c in components}
+    for instance, variable, value in overrides:
+        if instance not in by_name:
+            raise SimulationError(f"--set {instance}.{variable}: unknown instance {instance!r}; "
+                                  f"instances: {', '.join(by_name)}")
+        by_name[instance].start[variable] = value
+    return System(components, list(scenario.connections))
+
+
+def run(name: str, build_dir: Path | str = "build", *, stop_time: float | None = None,
+        step: float | None = None, order: str | None = None, coupling: str | None = None,
+        overrides=(), progress: bool = False) -> tuple[Result, Summary | None]:
+    """Build (if needed) and co-simulate scenario ``name``; returns the result and its summary."""
+    scenario = get(name)
+    fmus = ensure_fmus(scenario, Path(build_dir))
+    result = cosimulate(system(scenario, fmus, overrides),
+                        stop_time=scenario.stop_time if stop_time is None else stop_time,
+                        step=scenario.step if step is None else step,
+                        order=order or scenario.order,
+                        coupling=coupling or scenario.coupling,
+                        progress=progress)
+    return result, scenario.summarize(result) if scenario.summarize else None

@@ -1,0 +1,13 @@
+"""Observer algorithms in plain numpy -- no FMI.
+
+Modules (one concept each):
+
+* :mod:`observers.checks` -- validation and the two error types
+* :mod:`observers.standard_forms` -- binomial / Butterworth characteristic polynomials
+* :mod:`observers.modal` -- pole placement for ``K`` and ``N`` (paper 002)
+* :mod:`observers.integrators` -- exact LTI steps for linear inputs, RK4
+* :mod:`observers.block` -- the block interface the FMU adapter wraps
+* :mod:`observers.luenberger` -- full-order observer (paper 002)
+* :mod:`observers.feedback` -- state feedback ``u = -K x_hat + r``
+* :mod:`observers.estimation` -- parameter estimators (gradient, LS, DREM, FT-DREM)
+"""

@@ -1,0 +1,77 @@
+"""Integrators that advance continuous dynamics over one communication step.
+
+Inside an FMU the master only sees communication points, so each block must
+integrate its own dynamics accurately over a whole step ``h`` (the accuracy
+of a co-simulation must not depend on the master taking tiny steps).
+
+* :class:`LinearPropagator` -- exact for LTI dynamics ``x' = A x + B u`` with
+  an input that is *linear* over the step, ``u(t0 + s) = u0 + s du``
+  (first-order hold; ``du = 0`` is the zero-order hold).  With the augmented
+  matrix
+
+      M = [[A, B, 0], [0, 0, I], [0, 0, 0]],   expm(M h) = [[Phi, G0, G1], [0, I, h I], [0, 0, I]]
+
+  the step is ``x(t0 + h) = Phi x + G0 u0 + G1 du`` (Van Loan's method).
+* :func:`rk4_step` -- classical Runge-Kutta 4 with equal sub-steps, for
+  time-varying or nonlinear dynamics.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+from scipy.linalg import expm
+
+__all__ = ["LinearPropagator", "rk4_step"]
+
+
+class LinearPropagator:
+    """Exact propagation of ``x' = A x + B u`` for inputs linear over the step.
+
+    The matrices for a step length are computed once and cached (a
+    co-simulation usually uses one or two step lengths).
+    """
+
+    def __init__(self, A: np.ndarray, B: np.ndarray):
+        self.A = np.asarray(A, dtype=float)
+        self.B = np.asarray(B, dtype=float).reshape(self.A.shape[0], -1)
+        self._cache: dict[float, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+
+    def matrices(self, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(Phi, G0, G1)`` for step ``h``."""
+        cached = self._cache.get(h)
+        if cached is None:
+            n, m = self.B.shape
+            M = np.zeros((n + 2 * m, n + 2 * m))
+            M[:n, :n] = self.A
+            M[:n, n:n + m] = self.B
+            M[n:n + m, n + m:] = np.eye(m)
+            E = expm(M * h)
+            cached = (E[:n, :n], E[:n, n:n + m], E[:n, n + m:])
+            if len(self._cache) > 8:
+                self._cache.clear()
+            self._cache[h] = cached
+        return cached
+
+    def step(self, x: np.ndarray, h: float, u0: np.ndarray, du: np.ndarray | None = None) -> np.ndarray:
+        """State at ``t0 + h`` from ``x(t0)`` and the input ``u0 + s du``."""
+        Phi, G0, G1 = self.matrices(h)
+        x_next = Phi @ x + G0 @ u0
+        if du is not None:
+            x_next = x_next + G1 @ du
+        return x_next
+
+
+def rk4_step(f: Callable[[float, np.ndarray], np.ndarray], t: float, x: np.ndarray,
+             h: float, substeps: int = 1) -> np.ndarray:
+    """Advance ``x' = f(t, x)`` from ``t`` to ``t + h`` with ``substeps`` RK4 steps."""
+    dt = h / substeps
+    for i in range(substeps):
+        s = t + i * dt
+        k1 = f(s, x)
+        k2 = f(s + dt / 2, x + dt / 2 * k1)
+        k3 = f(s + dt / 2, x + dt / 2 * k2)
+        k4 = f(s + dt, x + dt * k3)
+        x = x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    return x

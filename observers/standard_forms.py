@@ -1,0 +1,119 @@
+"""Standard characteristic polynomials for modal (pole-placement) design.
+
+A standard form fixes the *shape* of a transient; one time constant fixes its
+speed.  Paper 002 (ship course stabilisation) uses the binomial form
+
+    D(s) = (T s + 1)^n,    T = t_settle / (3 n),                    (paper 002, eq. (9))
+
+e.g. ``n = 2, t_settle = 0.3 s -> T = 0.05 s -> D(s) = s^2 + 40 s + 400``.
+The Butterworth form places the poles evenly on a half circle of radius
+``omega0``; its ``omega0`` is chosen so that the 5 % settling time of the
+normalised step response equals ``t_settle`` (computed, not tabulated).
+
+All functions return *monic* coefficient arrays, highest power first
+(``numpy.polyval`` order), or the roots of those polynomials.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+from scipy import signal
+
+from .checks import ParameterError, require_positive
+
+__all__ = [
+    "binomial",
+    "butterworth",
+    "butterworth_omega",
+    "settling_time",
+    "standard_poles",
+    "FORMS",
+]
+
+
+def _order(n) -> int:
+    if int(n) != n or n < 1:
+        raise ParameterError(f"n: the polynomial order must be a positive integer, got {n!r}")
+    return int(n)
+
+
+def binomial(n: int, t_settle: float) -> np.ndarray:
+    """Monic coefficients of the binomial form ``(T s + 1)^n / T^n``.
+
+    Parameters
+    ----------
+    n : int
+        Order of the polynomial (the system order).
+    t_settle : float
+        Desired settling time in seconds; ``T = t_settle / (3 n)`` (paper 002, eq. (9)).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``[1, a_{n-1}, ..., a_0]`` of ``(s + 1/T)^n``.
+
+    Examples
+    --------
+    >>> binomial(2, 0.3)
+    array([  1.,  40., 400.])
+    """
+    n = _order(n)
+    T = require_positive("t_settle", t_settle) / (3 * n)
+    return np.poly(np.full(n, -1.0 / T))
+
+
+def butterworth(n: int, omega0: float) -> np.ndarray:
+    """Monic Butterworth polynomial of order ``n`` and radius ``omega0`` (rad/s).
+
+    The roots are ``omega0 * exp(i pi (2k + n - 1) / (2n))``, ``k = 1..n``.
+    """
+    n = _order(n)
+    omega0 = require_positive("omega0", omega0)
+    k = np.arange(1, n + 1)
+    roots = omega0 * np.exp(1j * np.pi * (2 * k + n - 1) / (2 * n))
+    return np.real(np.poly(roots))
+
+
+def settling_time(coefficients, band: float = 0.05) -> float:
+    """5 % (``band``) settling time of the unit-DC-gain step response ``a_0 / D(s)``.
+
+    Computed from a dense step response of the stable polynomial ``D``.
+    """
+    den = np.asarray(coefficients, dtype=float)
+    if np.any(np.roots(den).real >= 0):
+        raise ParameterError("coefficients: polynomial is not Hurwitz, no settling time")
+    slowest = -np.max(np.roots(den).real)
+    horizon = 40.0 / slowest
+    t = np.linspace(0.0, horizon, 40001)
+    _, response = signal.step(signal.lti([den[-1]], den), T=t)
+    outside = np.nonzero(np.abs(response - 1.0) > band)[0]
+    return float(t[outside[-1] + 1]) if outside.size else 0.0
+
+
+@lru_cache(maxsize=None)
+def _normalised_butterworth_settling(n: int) -> float:
+    return settling_time(butterworth(n, 1.0))
+
+
+def butterworth_omega(n: int, t_settle: float) -> float:
+    """Radius ``omega0`` for which the Butterworth form settles (5 %) in ``t_settle``."""
+    return _normalised_butterworth_settling(_order(n)) / require_positive("t_settle", t_settle)
+
+
+FORMS = ("binomial", "butterworth")
+
+
+def standard_poles(n: int, t_settle: float, form: str = "binomial") -> np.ndarray:
+    """Roots of the standard ``form`` of order ``n`` that settles in ``t_settle`` seconds.
+
+    ``form`` is ``"binomial"`` (paper 002: ``T = t_settle / (3n)``, an n-fold pole at
+    ``-1/T``) or ``"butterworth"`` (5 % settling time matched numerically).
+    """
+    if form == "binomial":
+        n = _order(n)
+        return np.full(n, -3.0 * n / require_positive("t_settle", t_settle))
+    if form == "butterworth":
+        return np.roots(butterworth(n, butterworth_omega(n, t_settle)))
+    raise ParameterError(f"form: unknown standard form {form!r}; choose one of {FORMS}")

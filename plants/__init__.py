@@ -1,0 +1,1 @@
+"""Plant models: the systems the observers are tested on."""
