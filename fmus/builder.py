@@ -45,9 +45,24 @@ def _bundled_files():
                 yield path
 
 
-def source_hash(definition: FmuDefinition) -> str:
-    """Hash of the definition and of every bundled source file."""
+def _module_files(extra_modules) -> list[Path]:
+    files = []
+    for module in map(Path, extra_modules):
+        if module.is_dir():
+            files += sorted(p for p in module.rglob("*.py") if "__pycache__" not in p.parts)
+        elif module.suffix == ".py" and module.is_file():
+            files.append(module)
+        else:
+            raise ValueError(f"extra_modules: {module} is neither a .py file nor a package directory")
+    return files
+
+
+def source_hash(definition: FmuDefinition, extra_modules=()) -> str:
+    """Hash of the definition, of every bundled source file and of the user's extra modules."""
     digest = hashlib.sha256(definition.to_json().encode())
+    for path in _module_files(extra_modules):
+        digest.update(path.name.encode())
+        digest.update(path.read_bytes())
     for path in _bundled_files():
         digest.update(str(path.relative_to(PROJECT_ROOT)).encode())
         digest.update(path.read_bytes())
@@ -67,8 +82,13 @@ def _copy_packages(destination: Path) -> list[Path]:
     return copied
 
 
-def build_fmu(definition: FmuDefinition, out_dir: Path | str) -> Path:
-    """Build ``<out_dir>/<model_name>.fmu`` and return its path."""
+def build_fmu(definition: FmuDefinition, out_dir: Path | str, extra_modules=()) -> Path:
+    """Build ``<out_dir>/<model_name>.fmu`` and return its path.
+
+    ``extra_modules`` are the user's ``.py`` files or package directories that
+    the definition's ``"module:function"`` references need (see
+    :mod:`fmus.callables`); they are bundled at the top of the resources folder.
+    """
     from pythonfmu import FmuBuilder  # imported here: the FMU runtime does not need it
 
     if not valid_identifier(definition.model_name):
@@ -84,10 +104,11 @@ def build_fmu(definition: FmuDefinition, out_dir: Path | str) -> Path:
         script.write_text(SLAVE_TEMPLATE.format(model=model, json=json_file.name))
         json_file.write_text(definition.to_json())
         info = temp / "build_info.json"
-        info.write_text(json.dumps({"source_hash": source_hash(definition)}))
+        info.write_text(json.dumps({"source_hash": source_hash(definition, extra_modules)}))
         packages = temp / "packages"
         packages.mkdir()
-        project_files = [json_file, info] + _copy_packages(packages)
+        _module_files(extra_modules)  # checks the paths early
+        project_files = [json_file, info] + _copy_packages(packages) + [Path(m) for m in extra_modules]
         saved_path = list(sys.path)
         try:
             fmu = FmuBuilder.build_FMU(script, dest=out_dir, project_files=project_files)
@@ -97,11 +118,11 @@ def build_fmu(definition: FmuDefinition, out_dir: Path | str) -> Path:
     return Path(fmu)
 
 
-def is_current(fmu: Path, definition: FmuDefinition) -> bool:
+def is_current(fmu: Path, definition: FmuDefinition, extra_modules=()) -> bool:
     """True when ``fmu`` exists and was built from this definition and these sources."""
     try:
         with zipfile.ZipFile(fmu) as archive:
             info = json.loads(archive.read("resources/build_info.json"))
     except (FileNotFoundError, KeyError, zipfile.BadZipFile, json.JSONDecodeError):
         return False
-    return info.get("source_hash") == source_hash(definition)
+    return info.get("source_hash") == source_hash(definition, extra_modules)

@@ -38,7 +38,8 @@ class Summary:
 class Scenario:
     name: str
     description: str
-    definitions: Callable[[], list[FmuDefinition]]
+    #: FMUs the scenario needs: definitions, or (definition, extra_modules) pairs
+    definitions: Callable[[], list]
     #: (instance name, model name, start values)
     components: list[tuple[str, str, dict[str, float]]]
     connections: list[Connection]
@@ -79,10 +80,11 @@ def get(name: str) -> Scenario:
 def ensure_fmus(scenario: Scenario, build_dir: Path, force: bool = False) -> dict[str, Path]:
     """Build the scenario's FMUs into ``build_dir`` unless current ones are there."""
     paths = {}
-    for definition in scenario.definitions():
+    for item in scenario.definitions():
+        definition, extra_modules = item if isinstance(item, tuple) else (item, ())
         path = Path(build_dir) / f"{definition.model_name}.fmu"
-        if force or not is_current(path, definition):
-            build_fmu(definition, build_dir)
+        if force or not is_current(path, definition, extra_modules):
+            build_fmu(definition, build_dir, extra_modules)
         paths[definition.model_name] = path
     return paths
 
