@@ -313,7 +313,8 @@ def cosimulate(system: System, stop_time: float, step: float, order: str = "gaus
         bar = _Progress(progress, steps)
         advance = _gauss_seidel_step if order == "gauss-seidel" else _jacobi_step
         for k in range(steps):
-            advance(instances, times[k], times[k + 1] - times[k], logger)
+            h = step if k < steps - 1 else times[k + 1] - times[k]  # one step length: cached discretisations
+            advance(instances, times[k], h, logger)
             values[k + 1] = _all_outputs(instances)
             if k % 256 == 0:
                 bar.update(k + 1)

@@ -81,6 +81,9 @@ def keep_module_dict(namespace: dict) -> None:
     _MODULE_DICT_REFERENCES.append(namespace)
 
 
+_EXTRAPOLATE, _INTERPOLATE = int(InputMode.EXTRAPOLATE), int(InputMode.INTERPOLATE)
+
+
 def interpolation_parameter(port: str) -> str:
     return f"{port}_interpolation"
 
@@ -221,16 +224,16 @@ class BlockSlave(Fmi2Slave):
 
     def _remember_inputs(self, time: float, end_time: float | None = None):
         for port, value in self._inputs.items():
-            at = end_time if (end_time is not None and self._modes[port][0] == InputMode.INTERPOLATE) else time
+            at = end_time if (end_time is not None and self._modes[port][0] == _INTERPOLATE) else time
             self._last_inputs[port] = (value.copy(), at)
 
     def _segment(self, port: str, t: float, h: float) -> Segment:
         value = self._inputs[port]
-        mode = int(self._modes[port][0])
+        mode = self._modes[port][0]
         previous, previous_time = self._last_inputs.get(port, (value, t))
-        if mode == InputMode.INTERPOLATE:
+        if mode == _INTERPOLATE:
             return Segment.between(previous, value, h)
-        if mode == InputMode.EXTRAPOLATE and previous_time < t:
+        if mode == _EXTRAPOLATE and previous_time < t:
             return Segment(value.copy(), (value - previous) / (t - previous_time))
         return Segment.hold(value.copy())
 

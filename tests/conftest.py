@@ -1,0 +1,17 @@
+"""Shared fixtures: FMUs are built once per test session into a temporary directory."""
+
+from __future__ import annotations
+
+import pytest
+
+
+@pytest.fixture(scope="session")
+def build_dir(tmp_path_factory):
+    """A session-wide build directory (FMUs are rebuilt only when their sources change)."""
+    return tmp_path_factory.mktemp("build")
+
+
+@pytest.fixture(scope="session")
+def ship_fmus(build_dir):
+    from fmus.scenarios import ensure_fmus, get
+    return ensure_fmus(get("ship"), build_dir)

@@ -1,0 +1,184 @@
+"""The generic slave and the builder: validity, naming, units, portability, errors, interpolation."""
+
+import subprocess
+import sys
+import sysconfig
+import textwrap
+import zipfile
+from xml.etree import ElementTree
+
+import numpy as np
+import pytest
+from fmpy import extract, read_model_description
+from fmpy.fmi1 import FMICallException
+from fmpy.fmi2 import FMU2Slave
+from fmpy.validation import validate_fmu
+from scipy.linalg import expm
+
+from fmus.builder import build_fmu, is_current
+from fmus.kinds.linear import plant_definition
+from observers.lti_model import StateSpace
+
+
+def open_slave(path, name="instance"):
+    description = read_model_description(str(path))
+    slave = FMU2Slave(guid=description.guid, unzipDirectory=extract(str(path)),
+                      modelIdentifier=description.coSimulation.modelIdentifier, instanceName=name)
+    slave.instantiate(loggingOn=True)
+    references = {v.name: v.valueReference for v in description.modelVariables}
+    return slave, references
+
+
+def test_every_ship_fmu_is_valid(ship_fmus):
+    for path in ship_fmus.values():
+        assert validate_fmu(str(path)) == [], path
+
+
+def test_model_description_names_units_and_structure(ship_fmus):
+    description = read_model_description(str(ship_fmus["ship_observer"]))
+    names = {v.name: v for v in description.modelVariables}
+    for name in ["A[1,1]", "A[2,2]", "B[2]", "C[1]", "N[1]", "N[2]", "x_hat0[1]", "x_hat0[2]",
+                 "u", "y", "x_hat[1]", "x_hat[2]", "y_hat", "u_interpolation", "y_interpolation"]:
+        assert name in names, name
+    assert float(names["N[2]"].start) == pytest.approx(1847.0)
+    assert names["N[1]"].causality == "parameter" and names["N[1]"].description
+    assert [names[o.variable.name].name for o in description.outputs] == ["x_hat[1]", "x_hat[2]", "y_hat"]
+    assert all(o.dependencies == [] for o in description.outputs)  # strictly proper observer
+    assert {u.variable.name for u in description.initialUnknowns} == {"x_hat[1]", "x_hat[2]", "y_hat"}
+
+    controller = read_model_description(str(ship_fmus["ship_controller"]))
+    (u,) = controller.outputs
+    assert {d.name for d in u.dependencies} == {"x_hat[1]", "x_hat[2]", "r"}  # direct feedthrough
+    assert "x_hat_interpolation" not in {v.name for v in controller.modelVariables}  # static block
+
+    plant = read_model_description(str(ship_fmus["ship_plant"]))
+    assert {"x0[1]", "x0[2]", "x[1]", "x[2]"} <= {v.name for v in plant.modelVariables}
+
+
+def test_units_are_declared(tmp_path):
+    model = StateSpace.checked([[0, 1], [0, -1]], [[0], [1]], [[1, 0]])
+    definition = plant_definition("units_plant", model, [0, 0],
+                                  {"state_units": ["rad", "rad/s"], "input_units": ["N.m"]}, "")
+    path = build_fmu(definition, tmp_path)
+    assert validate_fmu(str(path)) == []
+    variables = {v.name: v for v in read_model_description(str(path)).modelVariables}
+    assert (variables["x[1]"].unit, variables["x[2]"].unit, variables["u"].unit) == ("rad", "rad/s", "N.m")
+    root = ElementTree.fromstring(zipfile.ZipFile(path).read("modelDescription.xml"))
+    assert {u.get("name") for u in root.find("UnitDefinitions")} == {"rad", "rad/s", "N.m"}
+
+
+def test_fmu_runs_without_the_checkout(ship_fmus, tmp_path):
+    """Only numpy/scipy/fmpy are importable in the child process; the FMU brings its own code."""
+    site = sysconfig.get_paths()["purelib"]
+    script = textwrap.dedent(f"""
+        import sys
+        sys.path.append({site!r})          # packages only: no .pth files, so no editable obsfmu
+        try:
+            import observers
+        except ImportError:
+            pass
+        else:
+            raise SystemExit("observers is importable: the test is not isolated")
+        from fmpy import simulate_fmu
+        result = simulate_fmu({str(ship_fmus['ship_plant'])!r}, stop_time=0.1, output_interval=0.1,
+                              start_values={{'x0[1]': 1.0}})
+        import observers
+        print(result['x[1]'][-1], result['x[2]'][-1], observers.__file__)
+    """)
+    completed = subprocess.run([sys.executable, "-I", "-S", "-c", script], capture_output=True, text=True,
+                               cwd=tmp_path, timeout=120)
+    assert completed.returncode == 0, completed.stderr + completed.stdout
+    x1, x2, location = completed.stdout.split()
+    expected = expm(np.array([[0, 1], [-2, 3]]) * 0.1) @ [1.0, 0.2]
+    np.testing.assert_allclose([float(x1), float(x2)], expected, rtol=1e-12)
+    assert "/resources/observers/" in location  # the bundled copy, not a checkout
+
+
+def test_nan_input_is_refused_logged_and_the_state_kept(ship_fmus, capfd):
+    slave, vr = open_slave(ship_fmus["ship_observer"])
+    slave.setupExperiment(startTime=0.0)
+    slave.enterInitializationMode()
+    slave.exitInitializationMode()
+    slave.setReal([vr["y"]], [0.05])
+    slave.doStep(0.0, 1e-3)
+    before = slave.getReal([vr["x_hat[1]"], vr["x_hat[2]"]])
+    slave.setReal([vr["y"]], [float("nan")])
+    with pytest.raises(FMICallException, match="discard"):
+        slave.doStep(1e-3, 1e-3)
+    assert "input y: non-finite value" in capfd.readouterr().out
+    assert slave.getReal([vr["x_hat[1]"], vr["x_hat[2]"]]) == before  # untouched
+    slave.setReal([vr["y"]], [0.05])
+    slave.doStep(1e-3, 1e-3)  # the instance keeps working
+    assert np.all(np.isfinite(slave.getReal([vr["x_hat[1]"], vr["x_hat[2]"]])))
+    slave.terminate()
+    slave.freeInstance()
+
+
+def test_invalid_parameters_are_reported_not_fatal(ship_fmus, capfd):
+    slave, vr = open_slave(ship_fmus["ship_observer"])
+    slave.setupExperiment(startTime=0.0)
+    slave.enterInitializationMode()
+    slave.setReal([vr["N[1]"], vr["N[2]"]], [-1.0, 0.0])  # A - N C no longer Hurwitz
+    slave.exitInitializationMode()
+    assert "N: not Hurwitz" in capfd.readouterr().out
+    with pytest.raises(FMICallException, match="discard"):
+        slave.doStep(0.0, 1e-3)
+    slave.terminate()
+    slave.freeInstance()
+
+
+def test_one_fmu_instantiated_many_times_in_one_process(ship_fmus):
+    """Guards the workaround for pythonfmu 0.7 releasing the slave module dict (fmus.slave)."""
+    path = ship_fmus["ship_controller"]
+    description = read_model_description(str(path))
+    directory = extract(str(path))
+    for k in range(40):
+        slave = FMU2Slave(guid=description.guid, unzipDirectory=directory,
+                          modelIdentifier=description.coSimulation.modelIdentifier, instanceName=f"c{k}")
+        slave.instantiate()
+        slave.setupExperiment(startTime=0.0)
+        slave.enterInitializationMode()
+        slave.exitInitializationMode()
+        slave.terminate()
+        slave.freeInstance()
+
+
+@pytest.mark.parametrize("mode, tolerance", [(0, None), (1, 1e-12), (2, 1e-12)])
+def test_input_interpolation_modes(ship_fmus, mode, tolerance):
+    """A ramp input u = t: hold lags (O(h) error), extrapolate/interpolate are exact for it."""
+    slave, vr = open_slave(ship_fmus["ship_plant"], f"ramp{mode}")
+    slave.setupExperiment(startTime=0.0)
+    slave.enterInitializationMode()
+    slave.setInteger([vr["u_interpolation"]], [mode])
+    slave.setReal([vr["x0[1]"], vr["x0[2]"], vr["u"]], [0.0, 0.0, 0.0])
+    slave.exitInitializationMode()
+    h, steps = 0.01, 20
+    for k in range(steps):
+        t = k * h
+        slave.setReal([vr["u"]], [t + h if mode == 2 else t])  # mode 2: the value at the step end
+        slave.doStep(t, h)
+    x = np.array(slave.getReal([vr["x[1]"], vr["x[2]"]]))
+    A, B, T = np.array([[0.0, 1.0], [-2.0, 3.0]]), np.array([0.0, 1.0]), steps * h
+    # x(T) = int_0^T expm(A (T - s)) B s ds, by the augmented exponential of [[A, B, 0], [0, 0, 1], [0, 0, 0]]
+    M = np.zeros((4, 4))
+    M[:2, :2], M[:2, 2], M[2, 3] = A, B, 1.0
+    if mode == 1:  # no slope is known on the first step: u = 0 on [0, h], then u = t exactly
+        exact = (expm(M * (T - h)) @ [0, 0, h, 1])[:2]
+    else:
+        exact = (expm(M * T) @ [0, 0, 0, 1])[:2]
+    error = np.max(np.abs(x - exact))
+    if tolerance is None:
+        assert error > 1e-4  # holding u = t lags by h/2: a visible error
+    else:
+        assert error < tolerance
+    slave.terminate()
+    slave.freeInstance()
+
+
+def test_builder_detects_stale_fmus(tmp_path):
+    model = StateSpace.checked([[-1.0]], [[1.0]], [[1.0]])
+    definition = plant_definition("stale_plant", model, [0.0], {}, "")
+    path = build_fmu(definition, tmp_path)
+    assert is_current(path, definition)
+    definition.parameters[-1].value = [1.0]  # another x0
+    assert not is_current(path, definition)

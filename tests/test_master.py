@@ -1,0 +1,55 @@
+"""Master algorithm: wiring errors are clear, feedthrough is resolved, results are complete."""
+
+import numpy as np
+import pytest
+
+from fmus.master import Component, Connection, SimulationError, System, cosimulate
+from fmus.scenarios.ship import SCENARIO
+
+
+def ship_system(fmus, connections=None, start=None):
+    components = [Component(i, fmus[m], dict(start.get(i, {}) if start else {})) for i, m, _ in SCENARIO.components]
+    return System(components, connections if connections is not None else list(SCENARIO.connections))
+
+
+@pytest.mark.parametrize("connections, message", [
+    ([Connection("plant.y", "ghost.y")], "unknown instance 'ghost'"),
+    ([Connection("plant.x", "observer.y")], "2 outputs vs 1 inputs"),
+    ([Connection("plant.y", "observer.yy")], "observer.yy: no such input; did you mean y"),
+    ([Connection("plant.u", "observer.u")], "plant.u: is a input, expected an output"),
+    ([Connection("plant.y", "observer.y"), Connection("plant.y", "observer.y")], "observer.y: connected twice"),
+    ([Connection("plant", "observer.y")], "expected 'instance.variable'"),
+])
+def test_wiring_errors(ship_fmus, connections, message):
+    with pytest.raises(SimulationError, match=message.replace("(", r"\(")):
+        cosimulate(ship_system(ship_fmus, connections), 0.01, 0.001)
+
+
+def test_bad_run_settings(ship_fmus):
+    system = ship_system(ship_fmus)
+    with pytest.raises(SimulationError, match="order: 'sideways'"):
+        cosimulate(system, 0.1, 0.01, order="sideways")
+    with pytest.raises(SimulationError, match="stop_time: must be after"):
+        cosimulate(system, 0.0, 0.01)
+    with pytest.raises(SimulationError, match="no such variable"):
+        cosimulate(ship_system(ship_fmus, start={"plant": {"x9[1]": 1.0}}), 0.01, 0.001)
+
+
+def test_feedthrough_is_consistent_at_every_communication_point(ship_fmus):
+    for order in ("gauss-seidel", "jacobi"):
+        result = cosimulate(ship_system(ship_fmus, start={"observer": {"x_hat0[1]": 0.01}}), 0.05, 1e-3, order=order)
+        u = result["controller.u"]
+        expected = -(398.0 * result["observer.x_hat[1]"] + 43.0 * result["observer.x_hat[2]"])
+        np.testing.assert_allclose(u, expected, rtol=1e-12, atol=1e-15)
+
+
+def test_last_step_lands_on_the_stop_time(ship_fmus):
+    result = cosimulate(ship_system(ship_fmus), 0.0105, 1e-3)
+    assert result.time[-1] == pytest.approx(0.0105) and len(result.time) == 12
+    assert np.all(np.diff(result.time) > 0)
+
+
+def test_discarded_step_reports_the_fmu_message(ship_fmus):
+    system = ship_system(ship_fmus, start={"observer": {"N[1]": -1.0, "N[2]": 0.0}})
+    with pytest.raises(SimulationError, match="N: not Hurwitz"):
+        cosimulate(system, 0.01, 0.001, echo_log=False)
