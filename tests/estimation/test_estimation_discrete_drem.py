@@ -1,0 +1,72 @@
+"""DiscreteDREM (paper 000, Statement 2) against its analytic error recursion."""
+
+import numpy as np
+import pytest
+
+from observers.checks import ParameterError, SignalError
+from observers.estimation import DelayExtension, DiscreteDREM
+
+
+def run(estimator, theta, regressors):
+    return np.array([estimator.update(phi @ theta, phi) for phi in regressors])
+
+
+@pytest.mark.parametrize("normalize", [True, False])
+def test_error_follows_the_statement_2_recursion_exactly(normalize):
+    # phi(k) = [sin k, cos k], one-sample delay: Delta = sin k cos(k-1) - cos k sin(k-1) = sin 1
+    # (unit rows, so normalising changes nothing) and theta_tilde(k) = theta_tilde(0) (1 + sin(1)^2/k)^-k.
+    theta, gain = np.array([1.0, 2.0]), 0.5
+    regressors = [np.array([np.sin(k), np.cos(k)]) for k in range(21)]
+    estimates = run(DiscreteDREM(DelayExtension([1]), gain, normalize=normalize), theta, regressors)
+    np.testing.assert_array_equal(estimates[0], 0.0)       # sample 0: no delayed row yet, Delta = 0
+    for k in range(1, 21):
+        expected = theta * (1.0 + np.sin(1.0) ** 2 / gain) ** (-k)
+        np.testing.assert_allclose(theta - estimates[k], expected, rtol=1e-9, atol=1e-14)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_p10_random_bounded_regressors_reach_1e_8(seed):
+    rng = np.random.default_rng(seed)
+    p = 10
+    theta = rng.uniform(-2.0, 2.0, p)
+    regressors = rng.uniform(-1.0, 1.0, size=(60, p))
+    estimates = run(DiscreteDREM(DelayExtension(range(1, p)), 1e-4), theta, regressors)
+    errors = np.max(np.abs(estimates - theta), axis=1)
+    assert errors[-1] < 1e-8
+    assert np.argmax(errors < 1e-8) <= 40                  # measured: samples 35, 19, 31
+
+
+def test_p10_normalised_estimates_do_not_depend_on_the_signal_scale():
+    rng = np.random.default_rng(4)
+    p = 10
+    theta = rng.uniform(-2.0, 2.0, p)
+    regressors = rng.uniform(-1.0, 1.0, size=(40, p))
+    reference = run(DiscreteDREM(DelayExtension(range(1, p)), 1e-4), theta, regressors)
+    for scale in (1e-40, 1e-3, 1e3, 1e40):
+        scaled = run(DiscreteDREM(DelayExtension(range(1, p)), 1e-4), theta, scale * regressors)
+        np.testing.assert_allclose(scaled, reference, rtol=1e-9, atol=1e-12)
+    # without normalisation: rows of size 1e-3 give Delta ~ 1e-30, the law does not move
+    raw = run(DiscreteDREM(DelayExtension(range(1, p)), 1e-4, normalize=False), theta, 1e-3 * regressors)
+    assert np.max(np.abs(raw[-1] - theta)) > 0.1
+    with pytest.raises(SignalError, match="Delta"):
+        run(DiscreteDREM(DelayExtension(range(1, p)), 1e-4, normalize=False), theta, 1e40 * regressors)
+
+
+def test_vector_regression_with_two_rows_and_two_delays():
+    rng = np.random.default_rng(9)
+    theta = rng.uniform(-1.0, 1.0, 6)
+    est = DiscreteDREM(DelayExtension([1, 2], rows=2), 1e-3)
+    for k in range(60):
+        Phi = rng.uniform(-1.0, 1.0, size=(2, 6))
+        est.update(Phi @ theta, Phi)
+    assert est.samples == 60
+    assert np.max(np.abs(est.theta_hat - theta)) < 1e-8
+
+
+def test_dt_must_be_one_sample():
+    est = DiscreteDREM(DelayExtension([1]), 0.1)
+    phi = np.array([1.0, 0.5])
+    est.update(1.0, phi, 1)
+    est.update(1.0, phi)
+    with pytest.raises(ParameterError, match="dt"):
+        est.update(1.0, phi, 1e-3)
