@@ -106,6 +106,7 @@ class FmuDefinition:
     inputs: list[Port]
     outputs: list[Port]
     feedthrough: bool = False  #: outputs depend on the current inputs
+    kind_module: str = ""  #: module registering ``kind`` (filled in by the builder)
     options: dict[str, Any] = field(default_factory=dict)
     default_experiment: dict[str, float] | None = None
 

@@ -11,12 +11,20 @@ runs it with a fixed communication step in one of two orders:
 * ``jacobi`` -- every instance steps from the outputs at ``t``; direct
   feedthrough blocks are then re-evaluated so their outputs are consistent.
 
-Coupling.  With ``coupling="linear"`` (default) the master sets every
-connected input's ``<port>_interpolation`` parameter (when the FMU has one,
-see :mod:`fmus.slave`): *interpolate* when the producer steps before the
-consumer (Gauss-Seidel), *extrapolate* otherwise.  A held input lags by half
-a step; the scenarios measure what that costs.  ``coupling="hold"`` keeps
-the FMI default (zero-order hold).
+* ``adaptive`` -- Gauss-Seidel steps whose length is controlled by step
+  doubling: every step of length ``H`` is also done as two steps of ``H/2``
+  from the same saved FMU states (``fmi2GetFMUstate``/``fmi2SetFMUstate``);
+  Richardson's estimate ``|y_H/2 - y_H| / (2^p - 1)`` of the error of the
+  finer solution, per unit step, is kept below ``tolerance`` (absolute for
+  ``|y| <= 1``, relative above) on every output; rejected steps are rolled back.
+
+Coupling.  ``coupling="linear"`` (default) feeds each input as a straight
+line over the step through ``fmi2SetRealInputDerivatives`` (for FMUs that
+declare ``canInterpolateInputs``): it *interpolates* between the producer's
+outputs at ``t`` and ``t + h`` when the producer has already stepped
+(Gauss-Seidel), and *extrapolates* from the previous communication point
+otherwise.  ``coupling="hold"`` is the plain FMI zero-order hold, which lags
+by half a step (first order instead of second).
 
 Every output of every instance is recorded at every communication point,
 ``t0`` included, into a :class:`Result`.
@@ -43,9 +51,8 @@ from .result import Result
 
 __all__ = ["Component", "Connection", "System", "SimulationError", "cosimulate", "ORDERS", "COUPLINGS"]
 
-ORDERS = ("gauss-seidel", "jacobi")
+ORDERS = ("gauss-seidel", "jacobi", "adaptive")
 COUPLINGS = ("linear", "hold")
-_HOLD, _EXTRAPOLATE, _INTERPOLATE = 0, 1, 2
 _STATUS = ["OK", "WARNING", "DISCARD", "ERROR", "FATAL", "PENDING"]
 
 
@@ -96,6 +103,9 @@ class _Instance:
         self.outputs = [v.name for v in self.description.modelVariables if v.causality == "output"]
         self.output_vrs = [self.variables[n].valueReference for n in self.outputs]
         self.feedthrough = any(u.dependencies for u in self.description.outputs)
+        capabilities = self.description.coSimulation
+        self.can_interpolate = bool(capabilities.canInterpolateInputs)
+        self.can_save_state = bool(capabilities.canGetAndSetFMUstate)
         directory = extract(str(fmu), unzipdir=str(unzip_root / self.name))
         self._log = log
         self.slave = FMU2Slave(guid=self.description.guid, unzipDirectory=directory,
@@ -144,9 +154,12 @@ class _Instance:
         if self.output_vrs:
             self.output_values[:] = self.slave.getReal(self.output_vrs)
 
-    def pull_inputs(self, all_outputs: np.ndarray) -> None:
+    def set_inputs(self, values: np.ndarray, derivatives: np.ndarray | None = None) -> None:
+        """Inputs at the current time, and their first derivatives over the next step."""
         if self.input_vrs:
-            self.slave.setReal(self.input_vrs, all_outputs[self.input_sources].tolist())
+            self.slave.setReal(self.input_vrs, values.tolist())
+            if derivatives is not None and self.can_interpolate:
+                self.slave.setRealInputDerivatives(self.input_vrs, [1] * len(self.input_vrs), derivatives.tolist())
 
 
 class _Logger:
@@ -180,42 +193,42 @@ class _Logger:
 class _Progress:
     """A one-line progress bar on stderr, shown only for runs longer than a second."""
 
-    def __init__(self, enabled: bool, total: int):
-        self.enabled, self.total = enabled, total
+    def __init__(self, enabled: bool):
+        self.enabled = enabled
         self.start = wallclock.perf_counter()
         self.last_draw = 0.0
         self.drawn = False
 
-    def update(self, done: int) -> None:
+    def update(self, fraction: float, steps: int) -> None:
         if not self.enabled:
             return
         now = wallclock.perf_counter() - self.start
         if now < 1.0 or now - self.last_draw < 0.2:
             return
         self.last_draw = now
-        fraction = done / self.total
         bar = "#" * int(30 * fraction)
         eta = now / max(fraction, 1e-9) - now
-        print(f"\r[{bar:<30}] {100 * fraction:5.1f}%  {done}/{self.total} steps  eta {eta:5.1f} s",
+        print(f"\r[{bar:<30}] {100 * fraction:5.1f}%  {steps} steps  eta {eta:5.1f} s",
               end="", file=sys.stderr, flush=True)
         self.drawn = True
 
-    def close(self) -> None:
+    def close(self, steps: int) -> None:
         if self.drawn:
-            print(f"\r[{'#' * 30}] 100.0%  {self.total}/{self.total} steps  "
-                  f"{wallclock.perf_counter() - self.start:.1f} s", file=sys.stderr)
+            print(f"\r[{'#' * 30}] 100.0%  {steps} steps  {wallclock.perf_counter() - self.start:.1f} s",
+                  file=sys.stderr)
 
 
-def _wire(instances: dict[str, _Instance], connections: list[Connection]):
-    """Element-wise (producer, output index) for every connected input; checks names and sizes."""
-    offsets, offset = {}, 0
+def _wire(instances: dict[str, _Instance], connections: list[Connection]) -> None:
+    """Resolve connections element-wise: each input gets the index of its producer's output."""
+    offset, offsets = 0, {}
     for inst in instances.values():
         offsets[inst.name] = offset
         offset += len(inst.outputs)
-    wires: dict[str, list[tuple[str, int, str]]] = {name: [] for name in instances}
-    producers: dict[tuple[str, str], str] = {}
+    rank = {name: i for i, name in enumerate(instances)}
+    wires: dict[str, list[tuple[int, int, int]]] = {name: [] for name in instances}
+    seen: set[tuple[str, str]] = set()
     for connection in connections:
-        (src, src_var), (dst, dst_var) = (_split(connection.source), _split(connection.target))
+        (src, src_var), (dst, dst_var) = _split(connection.source), _split(connection.target)
         for inst_name in (src, dst):
             if inst_name not in instances:
                 raise SimulationError(f"connection {connection.source} -> {connection.target}: unknown "
@@ -226,15 +239,15 @@ def _wire(instances: dict[str, _Instance], connections: list[Connection]):
             raise SimulationError(f"connection {connection.source} -> {connection.target}: "
                                   f"{len(outputs)} outputs vs {len(inputs)} inputs")
         for out_name, in_name in zip(outputs, inputs):
-            if (dst, in_name) in producers:
+            if (dst, in_name) in seen:
                 raise SimulationError(f"{dst}.{in_name}: connected twice")
-            producers[(dst, in_name)] = src
-            index = offsets[src] + instances[src].outputs.index(out_name)
-            wires[dst].append((in_name, index, src))
+            seen.add((dst, in_name))
+            source = offsets[src] + instances[src].outputs.index(out_name)
+            wires[dst].append((instances[dst].variable(in_name).valueReference, source, rank[src]))
     for name, inst in instances.items():
-        inst.input_vrs = [inst.variable(in_name).valueReference for in_name, _, _ in wires[name]]
-        inst.input_sources = np.array([index for _, index, _ in wires[name]], dtype=int)
-    return wires
+        inst.input_vrs = [vr for vr, _, _ in wires[name]]
+        inst.input_sources = np.array([source for _, source, _ in wires[name]], dtype=int)
+        inst.stepped_before = np.array([producer < rank[name] for _, _, producer in wires[name]], dtype=bool)
 
 
 def _split(path: str) -> tuple[str, str]:
@@ -244,33 +257,116 @@ def _split(path: str) -> tuple[str, str]:
     return instance, variable
 
 
-def _coupling_modes(instances, wires, order: str, coupling: str) -> dict[tuple[str, str], int]:
-    """``<port>_interpolation`` value for every connected input port that has the parameter."""
-    if coupling == "hold":
-        return {}
-    rank = {name: i for i, name in enumerate(instances)}
-    modes = {}
-    for consumer, connected in wires.items():
-        for in_name, _, producer in connected:
-            parameter = f"{in_name.split('[')[0]}_interpolation"
-            if parameter not in instances[consumer].variables:
-                continue
-            stepped_before = order == "gauss-seidel" and rank[producer] < rank[consumer]
-            modes[(consumer, parameter)] = _INTERPOLATE if stepped_before else _EXTRAPOLATE
-    return modes
+def _call(inst: _Instance, logger: _Logger, what: str, function, *args):
+    try:
+        return function(*args)
+    except Exception as exc:
+        raise SimulationError(f"{inst.name}: {what} failed ({exc}); FMU says: {logger.last(inst.name)}") from None
+
+
+class _Stepper:
+    """One communication round of all instances, in Gauss-Seidel or Jacobi order.
+
+    Holds the shared output array (``live``), the outputs at the current
+    communication point (``now``) and at the previous one (``before``, ``h_before``)
+    -- the history the linear coupling extrapolates from.
+    """
+
+    def __init__(self, instances: dict[str, _Instance], logger: _Logger, jacobi: bool, linear: bool):
+        self.instances, self.logger, self.jacobi, self.linear = instances, logger, jacobi, linear
+        self.live = np.zeros(sum(len(inst.outputs) for inst in instances.values()))
+        offset = 0
+        for inst in instances.values():
+            inst.output_values = self.live[offset:offset + len(inst.outputs)]  # a view: refreshed in place
+            offset += len(inst.outputs)
+        self.now = self.live.copy()
+        self.before: np.ndarray | None = None
+        self.h_before = 0.0
+        self.feedthrough = [inst for inst in instances.values() if inst.feedthrough]
+
+    def settle(self, passes: int) -> None:
+        """Propagate outputs to inputs until direct-feedthrough chains are consistent."""
+        for _ in range(passes):
+            for inst in self.instances.values():
+                _call(inst, self.logger, "setting inputs", inst.set_inputs, self.live[inst.input_sources])
+                _call(inst, self.logger, "reading outputs", inst.refresh_outputs)
+
+    def mark_communication_point(self) -> None:
+        self.now = self.live.copy()
+
+    def _extrapolated_slopes(self) -> np.ndarray:
+        if self.before is None:
+            return np.zeros_like(self.now)
+        return (self.now - self.before) / self.h_before
+
+    def round(self, t: float, h: float) -> None:
+        slopes = self._extrapolated_slopes() if self.linear else None
+        for inst in self.instances.values():
+            sources = inst.input_sources
+            if not self.linear:
+                values, derivatives = (self.now if self.jacobi else self.live)[sources], None
+            else:
+                values = self.now[sources]
+                derivatives = slopes[sources]
+                if not self.jacobi:  # producers already stepped: interpolate between t and t + h
+                    stepped = inst.stepped_before
+                    derivatives[stepped] = (self.live[sources][stepped] - values[stepped]) / h
+            _call(inst, self.logger, "setting inputs", inst.set_inputs, values, derivatives)
+            _call(inst, self.logger, f"doStep(t={t:.9g}, h={h:.3g})", inst.slave.doStep, t, h)
+            inst.refresh_outputs()
+        if self.jacobi and self.feedthrough:
+            self.settle(len(self.feedthrough))
+        self.before, self.h_before = self.now, h
+        self.now = self.live.copy()
+
+    def probe_initial_slopes(self, t: float, delta: float) -> None:
+        """Estimate the outputs' slopes at the first point by a tiny held step, then roll back.
+
+        Without history the first step of the linear coupling would hold its
+        inputs (first order); the adaptive master's error control would then
+        shrink that step by orders of magnitude.
+        """
+        linear, saved = self.linear, self.save()
+        self.linear = False
+        self.round(t, delta)
+        slopes = (self.live - saved[2]) / delta
+        self.restore(saved)
+        self.free(saved)
+        self.linear = linear
+        self.before, self.h_before = self.now - delta * slopes, delta
+
+    # -- rollback (adaptive master)
+    def save(self):
+        states = [_call(inst, self.logger, "getFMUstate", inst.slave.getFMUstate) for inst in self.instances.values()]
+        return states, self.live.copy(), self.now.copy(), None if self.before is None else self.before.copy(), self.h_before
+
+    def restore(self, saved) -> None:
+        states, live, now, before, h_before = saved
+        for inst, state in zip(self.instances.values(), states):
+            _call(inst, self.logger, "setFMUstate", inst.slave.setFMUstate, state)
+        self.live[:] = live
+        self.now, self.before, self.h_before = now.copy(), None if before is None else before.copy(), h_before
+
+    def free(self, saved) -> None:
+        for inst, state in zip(self.instances.values(), saved[0]):
+            inst.slave.freeFMUstate(state)
 
 
 def cosimulate(system: System, stop_time: float, step: float, order: str = "gauss-seidel",
                start_time: float = 0.0, coupling: str = "linear", progress: bool = False,
-               echo_log: bool = True) -> Result:
-    """Run ``system`` from ``start_time`` to ``stop_time`` with communication step ``step``.
+               echo_log: bool = True, tolerance: float = 1e-6) -> Result:
+    """Run ``system`` from ``start_time`` to ``stop_time``.
 
     Parameters
     ----------
-    order : {"gauss-seidel", "jacobi"}
+    step : float
+        Communication step; the initial step of the adaptive master.
+    order : {"gauss-seidel", "jacobi", "adaptive"}
         Stepping order; Gauss-Seidel follows the order of ``system.components``.
     coupling : {"linear", "hold"}
         How inputs vary inside a step (see the module docstring).
+    tolerance : float
+        Error per unit step requested from the adaptive master.
     progress : bool
         Show a progress bar on stderr when the run takes longer than a second.
 
@@ -286,13 +382,13 @@ def cosimulate(system: System, stop_time: float, step: float, order: str = "gaus
         raise SimulationError(f"coupling: {coupling!r} is not one of {COUPLINGS}")
     if not (np.isfinite(step) and step > 0):
         raise SimulationError(f"step: must be a positive number, got {step!r}")
+    if not (np.isfinite(tolerance) and tolerance > 0):
+        raise SimulationError(f"tolerance: must be a positive number, got {tolerance!r}")
     if not stop_time > start_time:
         raise SimulationError(f"stop_time: must be after start_time {start_time}, got {stop_time}")
     names = [c.name for c in system.components]
     if len(set(names)) != len(names):
         raise SimulationError(f"components: instance names must be unique, got {names}")
-    steps = int(np.ceil((stop_time - start_time) / step - 1e-9))
-    times = np.minimum(start_time + step * np.arange(steps + 1), stop_time)
 
     logger = _Logger(echo_log)
     unzip_root = Path(tempfile.mkdtemp(prefix="obsfmu_run_"))
@@ -300,25 +396,21 @@ def cosimulate(system: System, stop_time: float, step: float, order: str = "gaus
     try:
         for component in system.components:
             instances[component.name] = _Instance(component, unzip_root, logger)
-        wires = _wire(instances, system.connections)
-        outputs = _bind_outputs(instances)
+        _wire(instances, system.connections)
+        if order == "adaptive":
+            unable = [inst.name for inst in instances.values() if not inst.can_save_state]
+            if unable:
+                raise SimulationError(f"order 'adaptive' rolls steps back, but {unable} cannot get/set their state")
         for inst in instances.values():
             inst.slave.instantiate(callbacks=logger.callbacks, loggingOn=True)
-        modes = _coupling_modes(instances, wires, order, coupling)
+        stepper = _Stepper(instances, logger, jacobi=order == "jacobi", linear=coupling == "linear")
         columns = [f"{inst.name}.{out}" for inst in instances.values() for out in inst.outputs]
-        values = np.empty((steps + 1, len(columns)))
-
-        _initialize(instances, system.components, modes, start_time, stop_time, logger)
-        values[0] = _all_outputs(instances)
-        bar = _Progress(progress, steps)
-        advance = _gauss_seidel_step if order == "gauss-seidel" else _jacobi_step
-        for k in range(steps):
-            h = step if k < steps - 1 else times[k + 1] - times[k]  # one step length: cached discretisations
-            advance(instances, times[k], h, logger)
-            values[k + 1] = _all_outputs(instances)
-            if k % 256 == 0:
-                bar.update(k + 1)
-        bar.close()
+        _initialize(instances, system.components, stepper, start_time, stop_time, logger)
+        bar = _Progress(progress)
+        if order == "adaptive":
+            times, values = _adaptive(stepper, start_time, stop_time, step, tolerance, 2 if coupling == "linear" else 1, bar)
+        else:
+            times, values = _fixed(stepper, start_time, stop_time, step, bar)
         for inst in instances.values():
             inst.slave.terminate()
         return Result(times, columns, values)
@@ -332,76 +424,80 @@ def cosimulate(system: System, stop_time: float, step: float, order: str = "gaus
         shutil.rmtree(unzip_root, ignore_errors=True)
 
 
-def _bind_outputs(instances) -> np.ndarray:
-    """One array for all outputs; each instance's ``output_values`` is a view into it."""
-    shared = np.zeros(sum(len(inst.outputs) for inst in instances.values()))
-    offset = 0
-    for inst in instances.values():
-        inst.output_values = shared[offset:offset + len(inst.outputs)]
-        offset += len(inst.outputs)
-    return shared
-
-
-def _all_outputs(instances) -> np.ndarray:
-    """The shared output array (a view: copy it to keep a snapshot)."""
-    first = next(iter(instances.values()))
-    return first.output_values.base if first.output_values.base is not None else first.output_values
-
-
-def _call(inst: _Instance, logger: _Logger, what: str, function, *args):
-    try:
-        return function(*args)
-    except Exception as exc:
-        raise SimulationError(f"{inst.name}: {what} failed ({exc}); FMU says: {logger.last(inst.name)}") from None
-
-
-def _settle_feedthrough(instances, logger, passes: int) -> None:
-    """Propagate outputs to inputs until direct-feedthrough chains are consistent."""
-    for _ in range(passes):
-        outputs = _all_outputs(instances)
-        for inst in instances.values():
-            _call(inst, logger, "setting inputs", inst.pull_inputs, outputs)
-            _call(inst, logger, "reading outputs", inst.refresh_outputs)
-            outputs = _all_outputs(instances)
-
-
-def _initialize(instances, components, modes, start_time, stop_time, logger) -> None:
+def _initialize(instances, components, stepper: _Stepper, start_time, stop_time, logger) -> None:
     for inst in instances.values():
         _call(inst, logger, "setupExperiment", inst.slave.setupExperiment, None, start_time, stop_time)
         _call(inst, logger, "enterInitializationMode", inst.slave.enterInitializationMode)
-    for (name, parameter), mode in modes.items():
-        instances[name].set_value(parameter, mode)
     for component in components:
         inst = instances[component.name]
         for variable, value in component.start.items():
             inst.variable(variable)
             _call(inst, logger, f"setting {variable}={value}", inst.set_value, variable, value)
-    _settle_feedthrough(instances, logger, len(instances) + 1)
+    stepper.settle(len(instances) + 1)
     for inst in instances.values():
         _call(inst, logger, "exitInitializationMode", inst.slave.exitInitializationMode)
         _call(inst, logger, "reading outputs", inst.refresh_outputs)
-    if not np.all(np.isfinite(_all_outputs(instances))):
+    if not np.all(np.isfinite(stepper.live)):
         bad = [inst.name for inst in instances.values() if not np.all(np.isfinite(inst.output_values))]
         raise SimulationError(f"initial outputs of {bad} are not finite; FMU says: "
                               + " ; ".join(logger.last(b) for b in bad))
+    stepper.mark_communication_point()
 
 
-def _do_step(inst, logger, t, h) -> None:
-    _call(inst, logger, f"doStep(t={t:.9g}, h={h:.3g})", inst.slave.doStep, t, h)
-    inst.refresh_outputs()
+def _fixed(stepper: _Stepper, start_time, stop_time, step, bar: _Progress):
+    steps = int(np.ceil((stop_time - start_time) / step - 1e-9))
+    times = np.minimum(start_time + step * np.arange(steps + 1), stop_time)
+    values = np.empty((steps + 1, len(stepper.live)))
+    values[0] = stepper.live
+    for k in range(steps):
+        h = step if k < steps - 1 else times[k + 1] - times[k]  # one step length: cached discretisations
+        stepper.round(times[k], h)
+        values[k + 1] = stepper.live
+        if k % 256 == 0:
+            bar.update((k + 1) / steps, k + 1)
+    bar.close(steps)
+    return times, values
 
 
-def _gauss_seidel_step(instances, t, h, logger) -> None:
-    for inst in instances.values():
-        inst.pull_inputs(_all_outputs(instances))
-        _do_step(inst, logger, t, h)
+def _adaptive(stepper: _Stepper, start_time, stop_time, step, tolerance, order, bar: _Progress):
+    """Step doubling with rollback; see the module docstring.
 
-
-def _jacobi_step(instances, t, h, logger) -> None:
-    outputs = _all_outputs(instances).copy()
-    for inst in instances.values():
-        inst.pull_inputs(outputs)
-    for inst in instances.values():
-        _do_step(inst, logger, t, h)
-    if any(inst.feedthrough for inst in instances.values()):
-        _settle_feedthrough(instances, logger, sum(inst.feedthrough for inst in instances.values()))
+    Step lengths are ``step * 2**k``: a step and its halves reuse cached
+    discretisations inside the FMUs.
+    """
+    span = stop_time - start_time
+    t, k, k_max = start_time, 0, int(np.floor(np.log2(span / 10 / step))) if span / 10 > step else 0
+    times, values = [t], [stepper.live.copy()]
+    accepted = rejected = 0
+    if stepper.linear:
+        stepper.probe_initial_slopes(t, step * 2.0**-20)
+    while stop_time - t > 1e-12 * span:
+        h = min(step * 2.0**k, stop_time - t)
+        saved = stepper.save()
+        stepper.round(t, h)
+        coarse = stepper.live.copy()
+        stepper.restore(saved)
+        stepper.round(t, h / 2)
+        middle = stepper.live.copy()
+        stepper.round(t + h / 2, h / 2)
+        fine = stepper.live
+        scale = tolerance * np.maximum(1.0, np.abs(fine)) * (h / span)
+        error = float(np.max(np.abs(fine - coarse) / (2**order - 1) / scale)) if fine.size else 0.0
+        if error <= 1.0:
+            times += [t + h / 2, t + h]
+            values += [middle, fine.copy()]
+            t += h
+            accepted += 1
+            stepper.free(saved)
+            if error < 0.5**(order + 1):  # the doubled step is expected to pass
+                k = min(k + 1, k_max)
+        else:
+            stepper.restore(saved)
+            stepper.free(saved)
+            rejected += 1
+            k -= max(1, int(np.ceil(np.log2(error) / order)))
+            if step * 2.0**k < 1e-12 * span:
+                raise SimulationError(f"adaptive master: step size underflow at t = {t:.9g} (tolerance {tolerance:g})")
+        bar.update((t - start_time) / span, accepted)
+    bar.close(accepted)
+    return np.array(times), np.array(values)

@@ -36,6 +36,9 @@ returns fmi2Discard with the state unchanged.
 
 from __future__ import annotations
 
+import copy
+import io
+import pickle
 from enum import IntEnum
 from pathlib import Path
 from typing import ClassVar
@@ -52,7 +55,7 @@ from observers.checks import ParameterError, finite_signal
 from .definition import FmuDefinition, element_unit
 from .kinds import create_block
 
-__all__ = ["BlockSlave", "InputMode", "keep_module_dict"]
+__all__ = ["BlockSlave", "InputMode", "CAPABILITIES"]
 
 
 class InputMode(IntEnum):
@@ -63,25 +66,35 @@ class InputMode(IntEnum):
     INTERPOLATE = 2
 
 
-_MODULE_DICT_REFERENCES: list[dict] = []
-
-
-def keep_module_dict(namespace: dict) -> None:
-    """Hold one more reference to a slave module's ``__dict__``; called by the module itself.
-
-    pythonfmu 0.7's native ``findClass`` (run by every ``fmi2Instantiate``)
-    imports the slave module, re-executes its source in the module's dict,
-    takes that dict with ``PyModule_GetDict`` -- a *borrowed* reference --
-    and then ``Py_DECREF``s it.  The generated slave module calls this
-    function at its top level, so every re-execution adds the reference that
-    the native code then drops; without it the dict is freed at the first
-    instantiation and a later one crashes the host ("module has no attribute
-    ...", heap corruption).  The tests instantiate one FMU many times to guard it.
-    """
-    _MODULE_DICT_REFERENCES.append(namespace)
-
+#: what the native binary (fmus/native/obsfmu_fmi2.c) and this class really support
+CAPABILITIES = {
+    "needsExecutionTool": "true",  # a Python interpreter with numpy and scipy
+    "canHandleVariableCommunicationStepSize": "true",
+    "canInterpolateInputs": "true",
+    "maxOutputDerivativeOrder": "0",
+    "canRunAsynchronuously": "false",
+    "canBeInstantiatedOnlyOncePerProcess": "false",
+    "canNotUseMemoryManagementFunctions": "true",
+    "canGetAndSetFMUstate": "true",
+    "canSerializeFMUstate": "true",
+    "providesDirectionalDerivative": "false",
+}
 
 _EXTRAPOLATE, _INTERPOLATE = int(InputMode.EXTRAPOLATE), int(InputMode.INTERPOLATE)
+
+
+class _StateUnpickler(pickle.Unpickler):
+    """Loads FMU states only: numpy arrays and the project's own classes, nothing else."""
+
+    _ALLOWED_ROOTS = ("numpy", "observers", "plants", "fmus")
+    _ALLOWED_BUILTINS = {"complex", "slice", "range", "set", "frozenset", "bytearray"}
+
+    def find_class(self, module, name):
+        root = module.split(".")[0]
+        if root in self._ALLOWED_ROOTS or (module == "builtins" and name in self._ALLOWED_BUILTINS) or (
+                module == "collections" and name in ("OrderedDict", "deque")):
+            return super().find_class(module, name)
+        raise pickle.UnpicklingError(f"FMU state may not contain {module}.{name}")
 
 
 def interpolation_parameter(port: str) -> str:
@@ -114,6 +127,8 @@ class BlockSlave(Fmi2Slave):
         self._time = 0.0
         self._stepping = False
         self._last_inputs: dict[str, tuple[np.ndarray, float]] = {}
+        self._derivatives: dict[str, np.ndarray] = {}  # first input derivatives for the next step
+        self._input_elements: dict[int, tuple[str, int]] = {}  # value reference -> (port, index)
 
         for p in definition.parameters:
             self._register_array(p.element_names, self._params[p.name], Fmi2Causality.parameter,
@@ -122,23 +137,27 @@ class BlockSlave(Fmi2Slave):
             for port in definition.inputs:
                 self._register_mode(port.name)
         for port in definition.inputs:
-            self._register_array(port.element_names, self._inputs[port.name], Fmi2Causality.input,
-                                 port.description, port.unit, on_set=self._inputs_changed)
+            references = self._register_array(port.element_names, self._inputs[port.name], Fmi2Causality.input,
+                                              port.description, port.unit, on_set=self._inputs_changed)
+            self._input_elements.update({vr: (port.name, i) for i, vr in enumerate(references)})
         for port in definition.outputs:
             self._register_outputs(port)
 
     # ------------------------------------------------------------------ variables
-    def _register_array(self, names, store: np.ndarray, causality, description, unit, on_set):
+    def _register_array(self, names, store: np.ndarray, causality, description, unit, on_set) -> list[int]:
         variability = Fmi2Variability.fixed if causality == Fmi2Causality.parameter else Fmi2Variability.continuous
+        references = []
         for i, name in enumerate(names):
             def setter(value, i=i, name=name):
                 store[i] = value
                 on_set(name)
-            self.register_variable(Real(name, causality=causality, variability=variability,
-                                        description=description,
-                                        getter=lambda i=i: float(store[i]), setter=setter))
+            variable = Real(name, causality=causality, variability=variability, description=description,
+                            getter=lambda i=i: float(store[i]), setter=setter)
+            self.register_variable(variable)
+            references.append(variable.value_reference)
             if element_unit(unit, i):
                 self._units[name] = element_unit(unit, i)
+        return references
 
     def _register_mode(self, port: str):
         store = self._modes[port]
@@ -189,7 +208,8 @@ class BlockSlave(Fmi2Slave):
     def _try_block(self) -> Block | None:
         if self._block is None and self._block_error is None:
             try:
-                block = create_block(self.definition.kind, self._parameter_arrays(), self.definition.options)
+                block = create_block(self.definition.kind, self._parameter_arrays(), self.definition.options,
+                                     self.definition.kind_module)
                 if block.feedthrough and not self.definition.feedthrough:
                     raise ParameterError("D: the parameters give a direct feedthrough but the FMU was "
                                          "built without one; rebuild it with that D")
@@ -218,17 +238,49 @@ class BlockSlave(Fmi2Slave):
         self._time = float(start_time)
 
     def exit_initialization_mode(self):
-        self._try_block()
         self._remember_inputs(self._time)
         self._stepping = True
+        if self._try_block() is None:
+            raise ParameterError(f"the parameters do not define a valid block: {self._block_error}")
 
-    def _remember_inputs(self, time: float, end_time: float | None = None):
+    @property
+    def last_successful_time(self) -> float:
+        return self._time
+
+    def set_real_input_derivatives(self, vrs, orders, values):
+        """First time derivatives of inputs for the next step (``fmi2SetRealInputDerivatives``).
+
+        They override the port's ``<port>_interpolation`` mode for that step
+        only: ``u(t + s) = u(t) + s du``; after the step the input holds
+        ``u(t) + h du`` (what direct-feedthrough outputs at ``t + h`` see).
+        Higher orders are ignored with a warning.
+        """
+        for vr, order, value in zip(vrs, orders, values):
+            if vr not in self._input_elements:
+                raise ValueError(f"value reference {vr} is not a real input")
+            if order != 1:
+                self.log(f"input derivative of order {order} ignored (only order 1 is used)", Fmi2Status.warning)
+                continue
+            port, index = self._input_elements[vr]
+            self._derivatives.setdefault(port, np.zeros_like(self._inputs[port]))[index] = value
+
+    def _remember_inputs(self, time: float, step: float = 0.0):
+        """Record each input with the time it belongs to, after a step of length ``step``.
+
+        An input with a derivative for the step followed it to ``time + step``;
+        an interpolated input was set as its value at ``time + step``.
+        """
         for port, value in self._inputs.items():
-            at = end_time if (end_time is not None and self._modes[port][0] == _INTERPOLATE) else time
-            self._last_inputs[port] = (value.copy(), at)
+            if port in self._derivatives:
+                value += step * self._derivatives[port]
+            at_end = port in self._derivatives or self._modes[port][0] == _INTERPOLATE
+            self._last_inputs[port] = (value.copy(), time + step if at_end else time)
+        self._derivatives.clear()
 
     def _segment(self, port: str, t: float, h: float) -> Segment:
         value = self._inputs[port]
+        if port in self._derivatives:
+            return Segment(value.copy(), self._derivatives[port].copy())
         mode = self._modes[port][0]
         previous, previous_time = self._last_inputs.get(port, (value, t))
         if mode == _INTERPOLATE:
@@ -250,15 +302,51 @@ class BlockSlave(Fmi2Slave):
             self.log(f"do_step(t={current_time:g}, h={step_size:g}) refused: {type(exc).__name__}: {exc}",
                      Fmi2Status.error)
             return False
-        self._remember_inputs(current_time, current_time + step_size)
+        self._remember_inputs(current_time, step_size)
         self._time = current_time + step_size
         self._outputs_cache = None
         return True
+
+    # ------------------------------------------------------------------ FMU state
+    def get_fmu_state(self) -> dict:
+        """A deep copy of everything that evolves: parameters, inputs, block state, history."""
+        return copy.deepcopy({
+            "params": self._params, "inputs": self._inputs, "modes": self._modes,
+            "derivatives": self._derivatives, "last_inputs": self._last_inputs, "time": self._time,
+            "stepping": self._stepping, "block_error": self._block_error,
+            "block": None if self._block is None else self._block.get_state(),
+        })
+
+    def set_fmu_state(self, state: dict) -> None:
+        state = copy.deepcopy(state)
+        for name in ("params", "inputs", "modes"):  # the variable getters hold these arrays: copy into them
+            for key, values in state[name].items():
+                getattr(self, f"_{name}")[key][:] = values
+        self._derivatives = state["derivatives"]
+        self._last_inputs = state["last_inputs"]
+        self._time = state["time"]
+        self._stepping = state["stepping"]
+        self._block_error = state["block_error"]
+        self._block = None
+        if state["block"] is not None:
+            self._block_error = None
+            self._try_block().set_state(state["block"])
+        self._outputs_cache = None
+
+    @staticmethod
+    def serialize_fmu_state(state: dict) -> bytes:
+        return pickle.dumps(state, protocol=pickle.HIGHEST_PROTOCOL)
+
+    @staticmethod
+    def deserialize_fmu_state(data: bytes) -> dict:
+        """Unpickle a state made by :meth:`serialize_fmu_state`; only project and numpy types load."""
+        return _StateUnpickler(io.BytesIO(data)).load()
 
     # ------------------------------------------------------------------ modelDescription
     def to_xml(self, model_options=None) -> Element:
         """pythonfmu's description plus units, mode ranges and a complete ModelStructure."""
         root = super().to_xml(model_options or {})
+        root.find("CoSimulation").attrib.update(CAPABILITIES)
         self._add_units(root)
         for variable in root.iter("ScalarVariable"):
             if variable.get("name", "").endswith("_interpolation"):

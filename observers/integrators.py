@@ -30,8 +30,15 @@ class LinearPropagator:
     """Exact propagation of ``x' = A x + B u`` for inputs linear over the step.
 
     The matrices for a step length are computed once and cached (a
-    co-simulation usually uses one or two step lengths).
+    co-simulation uses one step length, an adaptive master a few powers of
+    two of it).  The cache is a pure function of ``(A, B, h)``, so copies of a
+    block share their propagator (``copy.deepcopy`` returns it unchanged).
     """
+
+    CACHE_SIZE = 64
+
+    def __deepcopy__(self, memo):
+        return self
 
     def __init__(self, A: np.ndarray, B: np.ndarray):
         self.A = np.asarray(A, dtype=float)
@@ -49,7 +56,7 @@ class LinearPropagator:
             M[n:n + m, n + m:] = np.eye(m)
             E = expm(M * h)
             cached = (E[:n, :n], E[:n, n:n + m], E[:n, n + m:])
-            if len(self._cache) > 8:
+            if len(self._cache) >= self.CACHE_SIZE:
                 self._cache.clear()
             self._cache[h] = cached
         return cached

@@ -8,6 +8,8 @@ name from a fixed table -- never by evaluating a string.
 
 from __future__ import annotations
 
+import importlib
+import pkgutil
 from collections.abc import Callable
 from typing import Any
 
@@ -31,8 +33,17 @@ def register(name: str) -> Callable[[Factory], Factory]:
     return decorate
 
 
-def create_block(kind: str, params: dict[str, np.ndarray], options: dict[str, Any]) -> Block:
-    """Build the block of ``kind``; unknown kinds are a :class:`ParameterError`."""
+def create_block(kind: str, params: dict[str, np.ndarray], options: dict[str, Any],
+                 module: str | None = None) -> Block:
+    """Build the block of ``kind`` (registered by ``module``, imported if needed).
+
+    Only modules of this package can be named; an FMU therefore imports just
+    the kind it uses.  Unknown kinds are a :class:`ParameterError`.
+    """
+    if kind not in _FACTORIES and module:
+        if not (module.startswith(__name__ + ".") and module.replace(".", "").replace("_", "").isalnum()):
+            raise ParameterError(f"kind_module: {module!r} is not a module of {__name__}")
+        importlib.import_module(module)
     try:
         factory = _FACTORIES[kind]
     except KeyError:
@@ -40,17 +51,21 @@ def create_block(kind: str, params: dict[str, np.ndarray], options: dict[str, An
     return factory(params, options)
 
 
-def known_kinds() -> list[str]:
-    return sorted(_FACTORIES)
-
-
-def _register_all() -> None:
+def load_all() -> None:
     """Import every module of this package; each registers its kinds on import."""
-    import importlib
-    import pkgutil
-
     for module in pkgutil.iter_modules(__path__):
         importlib.import_module(f"{__name__}.{module.name}")
 
 
-_register_all()
+def known_kinds() -> list[str]:
+    load_all()
+    return sorted(_FACTORIES)
+
+
+def module_of(kind: str) -> str:
+    """The module that registers ``kind``."""
+    load_all()
+    try:
+        return _FACTORIES[kind].__module__
+    except KeyError:
+        raise ParameterError(f"kind: unknown block kind {kind!r}; known: {sorted(_FACTORIES)}") from None
