@@ -1,0 +1,141 @@
+"""Kinds for paper 001: the nonlinear LTV plant and its adaptive observer (least squares).
+
+The user's model functions ``A(t)``, ``L(t)``, ``f(y)`` are ``"module:function"`` references in
+the definition's ``options`` (resolved here with :func:`fmus.callables.resolve`, never
+evaluated); everything numeric is an FMU parameter.  The dimension ``n`` is fixed when the FMU
+is built; the paper's functions are in :mod:`plants.paper001`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from observers.checks import ParameterError
+from observers.ltv_adaptive import LTVAdaptiveObserver
+from plants.ltv import OutputNonlinearLTVPlant
+from plants.signals import SampledNoise
+
+from ..callables import reference, resolve
+from ..definition import FmuDefinition, Parameter, Port
+from . import register
+
+__all__ = ["ltv_plant_definition", "ltv_observer_definition"]
+
+PLANT_KIND = "ltv-output-nonlinear-plant"
+OBSERVER_KIND = "ltv-adaptive-observer"
+
+
+def _function(options: dict, key: str) -> Callable:
+    if key not in options:
+        raise ParameterError(f"{key}: the definition's options lack the 'module:function' reference {key!r}")
+    return resolve(options[key], key)
+
+
+@register(PLANT_KIND)
+def _plant(p, options):
+    noise = SampledNoise(float(p["noise_std"]), float(p["noise_dt"]), float(p["noise_seed"]))   # checks all three
+    return OutputNonlinearLTVPlant(_function(options, "A"), p["C"], _function(options, "f"), p["k"], p["b"],
+                                   p["m"], p["x0"], noise, float(p["max_substep"]), float(p["max_dy"]))
+
+
+@register(OBSERVER_KIND)
+def _observer(p, options):
+    return LTVAdaptiveObserver(_function(options, "A"), p["C"], _function(options, "L"), _function(options, "f"),
+                               float(p["gamma"]), float(p["beta"]), float(p["f0"]), float(p["M"]),
+                               p["x_hat0"], p["k_hat0"], p["b_hat0"], p["m_hat0"],
+                               float(p["max_substep"]), float(p["max_dy"]))
+
+
+def _reference(function: Callable | str) -> str:
+    return function if isinstance(function, str) else reference(function)
+
+
+def _scalar(name, value, description, unit=None) -> Parameter:
+    return Parameter.of(name, np.array(value, dtype=float), description, unit)
+
+
+def _stepping(max_substep: float, max_dy: float) -> list[Parameter]:
+    return [_scalar("max_substep", max_substep, "longest RK4 sub-step inside a communication step", "s"),
+            _scalar("max_dy", max_dy, "largest change of y over one RK4 sub-step (resolves f(y))")]
+
+
+def ltv_plant_definition(model_name: str, A, C, f, k, b, m, x0, *, noise_std=0.0, noise_dt=1e-3,
+                         noise_seed=0, max_substep=1e-3, max_dy=0.2, description: str = "") -> FmuDefinition:
+    """Plant FMU ``x' = A(t) x + k C^T x + b u + m f(y)``, ``y = C^T x + v``.
+
+    ``A`` and ``f`` are module-level functions or ``"module:function"`` references; ``C``, ``k``,
+    ``b``, ``m``, ``x0`` are vectors of length n.  Outputs ``y`` (with the noise ``v``), the true
+    state ``x`` and the true ``theta = [-x(0); k; b; m]``.  Checked by building the block once.
+    """
+    n = np.size(C)
+    options = {"A": _reference(A), "f": _reference(f)}
+    parameters = [
+        Parameter.of("C", C, "output vector, y = C^T x"),
+        Parameter.of("k", k, "unknown output injection k C^T x"),
+        Parameter.of("b", b, "unknown input vector b u"),
+        Parameter.of("m", m, "unknown gain of the nonlinearity m f(y)"),
+        Parameter.of("x0", x0, "unknown initial state x(0)"),
+        _scalar("noise_std", noise_std, "standard deviation of the measurement noise on y (0: none)"),
+        _scalar("noise_dt", noise_dt, "hold interval of the measurement noise", "s"),
+        _scalar("noise_seed", noise_seed, "seed of the measurement noise (a non-negative integer)"),
+    ] + _stepping(max_substep, max_dy)
+    definition = FmuDefinition(
+        model_name=model_name, kind=PLANT_KIND, options=options,
+        description=description or (f"paper 001 plant x' = A(t) x + k C^T x + b u + m f(y), y = C^T x + noise; "
+                                    f"A = {options['A']}, f = {options['f']}"),
+        parameters=parameters,
+        inputs=[Port("u", 1, "plant input u", scalar=True)],
+        outputs=[Port("y", 1, "measured output y = C^T x (+ noise)", scalar=True),
+                 Port("x", n, "true state x"),
+                 Port("theta", 4 * n,
+                      "true Theta = [-x(0); k; b; m] of regression (7), to compare with theta_hat")],
+    )
+    _check(definition)
+    return definition
+
+
+def ltv_observer_definition(model_name: str, A, C, L, f, *, gamma=1000.0, beta=1.0, f0=0.1, M=1e12,
+                            x_hat0=None, k_hat0=None, b_hat0=None, m_hat0=None, max_substep=1e-3,
+                            max_dy=0.2, description: str = "") -> FmuDefinition:
+    """Adaptive observer FMU of paper 001 (filters (2)-(6), regression (7), LS with forgetting, (10)).
+
+    ``A``, ``L``, ``f`` are module-level functions or ``"module:function"`` references; ``C`` is
+    the output vector (length n).  Checked by building the block once.
+    """
+    n = np.size(C)
+    zeros = np.zeros(n)
+    options = {"A": _reference(A), "L": _reference(L), "f": _reference(f)}
+    estimates = [("x_hat0", x_hat0, "initial estimate of x(0) (= x_hat(0))"),
+                 ("k_hat0", k_hat0, "initial estimate of k"), ("b_hat0", b_hat0, "initial estimate of b"),
+                 ("m_hat0", m_hat0, "initial estimate of m")]
+    parameters = [
+        Parameter.of("C", C, "output vector, y = C^T x"),
+        _scalar("gamma", gamma, "adaptation gain of the least-squares estimator"),
+        _scalar("beta", beta, "forgetting factor", "1/s"),
+        _scalar("f0", f0, "F(0) = I / f0"),
+        _scalar("M", M, "bound on the largest eigenvalue of F"),
+    ] + [Parameter.of(name, zeros if value is None else value, text) for name, value, text in estimates] \
+      + _stepping(max_substep, max_dy)
+    definition = FmuDefinition(
+        model_name=model_name, kind=OBSERVER_KIND, options=options,
+        description=description or (f"paper 001 adaptive observer: filters (2)-(6), regression (7), least squares "
+                                    f"with forgetting, estimate (10); A = {options['A']}, L = {options['L']}, "
+                                    f"f = {options['f']}"),
+        parameters=parameters,
+        inputs=[Port("u", 1, "plant input u", scalar=True), Port("y", 1, "measured output y", scalar=True)],
+        outputs=[Port("x_hat", n, "state estimate x_hat (10)"),
+                 Port("theta_hat", 4 * n, "estimate of Theta = [-x(0); k; b; m]"),
+                 Port("k_hat", n, "estimate of k"), Port("b_hat", n, "estimate of b"),
+                 Port("m_hat", n, "estimate of m"), Port("x0_hat", n, "estimate of x(0)"),
+                 Port("F_max", 1, "largest eigenvalue of the estimator gain F (bounded by M)", scalar=True)],
+    )
+    _check(definition)
+    return definition
+
+
+def _check(definition: FmuDefinition) -> None:
+    """Build the block once so that every mistake is reported before an FMU is built."""
+    from . import create_block
+    create_block(definition.kind, {p.name: p.array(p.value) for p in definition.parameters}, definition.options)

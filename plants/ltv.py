@@ -1,0 +1,107 @@
+r"""Nonlinear LTV plant of paper 001: ``x' = A(t) x + k C^T x + b u + m f(y)``, ``y = C^T x``.
+
+``A(t)``, ``C`` and ``f`` are known to the observer; ``k``, ``b``, ``m`` and ``x(0)`` are the
+unknowns it estimates.  The true state ``x`` and the true parameter vector of the
+regression (7), ``Theta = [-x(0); k; b; m]``, are outputs so that estimation errors can be
+computed.  An optional measurement noise ``v`` (sample-and-hold Gaussian,
+:class:`~plants.signals.SampledNoise`) is added to the measured output only:
+``y = C^T x + v``; the plant itself evolves with the noise-free ``C^T x``.
+
+A communication step is integrated with RK4 sub-steps, each at most ``max_substep`` long
+and short enough for ``C^T x`` to change by at most ``max_dy`` (estimated from ``y'`` at the
+step start) -- with ``f = sin`` and ``|y|`` in the thousands, ``f(y)`` oscillates at
+hundreds of rad/s and must be resolved.
+"""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Callable
+from typing import Mapping
+
+import numpy as np
+
+from observers.block import Block, Segment
+from observers.checks import ParameterError, SignalError, as_vector, require_positive
+from observers.integrators import rk4_step
+from observers.ltv_stepping import QuadraticInputs, output_function, substep_count, time_function
+
+from .signals import SampledNoise
+
+__all__ = ["OutputNonlinearLTVPlant"]
+
+
+class OutputNonlinearLTVPlant(Block):
+    """Plant (1) of paper 001 with known ``A(t)``, ``C``, ``f`` and unknown ``k``, ``b``, ``m``, ``x0``.
+
+    Parameters
+    ----------
+    A : callable
+        ``A(t) -> (n, n)`` array.
+    C : array_like, shape (n,)
+        Output vector.
+    f : callable
+        ``f(y) -> float``.
+    k, b, m, x0 : array_like, shape (n,)
+        Output injection ``k C^T x``, input vector, nonlinearity gain, initial state.
+    noise : SampledNoise, optional
+        Measurement noise added to the output ``y``.
+    max_substep : float
+        Longest RK4 sub-step, s.
+    max_dy : float
+        Largest change of ``C^T x`` over one sub-step.
+
+    Notes
+    -----
+    Ports: input ``u`` (scalar); outputs ``y`` (measured, scalar), ``x`` (n) and ``theta``
+    (4 n, the true ``Theta = [-x(0); k; b; m]``).
+    """
+
+    def __init__(self, A: Callable, C, f: Callable, k, b, m, x0, noise: SampledNoise | None = None,
+                 max_substep: float = 1e-3, max_dy: float = 0.2):
+        self.C = as_vector("C", C)
+        if not np.any(self.C):
+            raise ParameterError("C: the output vector is zero; y = C^T x would measure nothing")
+        n = self.C.size
+        self.A = time_function("A", A, (n, n))
+        self.f = output_function("f", f)
+        self.k, self.b, self.m, x0 = (as_vector(name, value, n)
+                                      for name, value in (("k", k), ("b", b), ("m", m), ("x0", x0)))
+        self.theta = np.concatenate([-x0, self.k, self.b, self.m])
+        self.x = x0.copy()
+        self.noise = noise
+        self.max_substep = require_positive("max_substep", max_substep)
+        self.max_dy = require_positive("max_dy", max_dy)
+        self.inputs = QuadraticInputs()
+        self.input_sizes = {"u": 1}
+        self.output_sizes = {"y": 1, "x": n, "theta": 4 * n}
+
+    def rate(self, t: float, x: np.ndarray, u: float) -> np.ndarray:
+        """Right-hand side of (1): ``A(t) x + k y + b u + m f(y)``, ``y = C^T x``."""
+        y = self.C @ x
+        return np.asarray(self.A(t), dtype=float) @ x + self.k * y + self.b * u + self.m * float(self.f(y))
+
+    def outputs(self, t: float, inputs: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+        y = np.array([self.C @ self.x])
+        if self.noise is not None and self.noise.std:
+            y = y + self.noise(t)
+        return {"y": y, "x": self.x.copy(), "theta": self.theta.copy()}
+
+    def get_state(self) -> dict:
+        """What evolves (state, input history) -- not the user's functions, which an FMU state
+        must not pickle."""
+        return copy.deepcopy({"x": self.x, "inputs": self.inputs})
+
+    def set_state(self, state) -> None:
+        state = copy.deepcopy(dict(state))
+        self.x, self.inputs = state["x"], state["inputs"]
+
+    def advance(self, t: float, h: float, inputs: Mapping[str, Segment]) -> None:
+        u = self.inputs.parabolas(t, h, inputs)["u"]
+        dy = self.C @ self.rate(t, self.x, u.start)
+        count = substep_count(h, self.max_substep, dy, self.max_dy)
+        x = rk4_step(lambda s, x: self.rate(s, x, u.at(s - t)), t, self.x, h, count)
+        if not np.all(np.isfinite(x)):
+            raise SignalError(f"x: the plant state is not finite at t = {t + h:g} (unstable plant?)")
+        self.x = x
+        self.inputs.commit(t, h, inputs)

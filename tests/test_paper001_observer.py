@@ -1,0 +1,206 @@
+"""Paper 001 without FMI: the LTV plant and the adaptive observer blocks, and their error handling.
+
+The reference (``tests/reference/paper001.py``) imports nothing from the project: plant and
+plant + filters + estimator are each ONE ODE solved with Radau at rtol = atol = 1e-10..1e-12.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+from observers.block import Segment
+from observers.checks import ParameterError, SignalError
+from observers.ltv_adaptive import LTVAdaptiveObserver
+from observers.ltv_stepping import QuadraticInputs
+from plants.ltv import OutputNonlinearLTVPlant
+from plants.paper001 import A_paper, L_paper, f_sin
+from plants.signals import SampledNoise
+from reference import paper001 as ref
+
+C = [1.0, 0.0]
+
+
+def observer(**options):
+    return LTVAdaptiveObserver(**(dict(A=A_paper, C=C, L=L_paper, f=f_sin) | options))
+
+
+def plant(case, **options):
+    return OutputNonlinearLTVPlant(A_paper, C, f_sin, case["k"], case["b"], case["m"], case["x0"], **options)
+
+
+def run_blocks(case, T, h, interpolate=True, **observer_options):
+    """Plant then observer (Gauss-Seidel), u = sin t; inputs interpolated across the step or held.
+
+    Returns times, plant states, observer estimates ``theta_hat`` and ``x_hat``.
+    """
+    p, o = plant(case), observer(**observer_options)
+    steps = int(round(T / h))
+    x, theta_hat, x_hat = [p.x.copy()], [o.outputs(0.0, {})["theta_hat"]], [o.outputs(0.0, {})["x_hat"]]
+    for i in range(steps):
+        t = i * h
+        y0 = p.outputs(t, {})["y"]
+        u = Segment.between([math.sin(t)], [math.sin(t + h)], h) if interpolate else Segment.hold([math.sin(t)])
+        p.advance(t, h, {"u": u})
+        y1 = p.outputs(t + h, {})["y"]
+        o.advance(t, h, {"u": u, "y": Segment.between(y0, y1, h) if interpolate else Segment.hold(y1)})
+        out = o.outputs(t + h, {})
+        x.append(p.x.copy())
+        theta_hat.append(out["theta_hat"])
+        x_hat.append(out["x_hat"])
+    return h * np.arange(steps + 1), np.array(x), np.array(theta_hat), np.array(x_hat)
+
+
+# --- numerics against the independent reference ---------------------------------------------
+
+def test_plant_follows_the_monolithic_solution_while_it_grows_to_hundreds():
+    times = np.linspace(0.0, 10.0, 101)
+    x = ref.simulate_plant(times, **ref.PAPER)
+    p, h, x_blocks = plant(ref.PAPER), 1e-3, [ref.PAPER["x0"]]
+    for i in range(10_000):
+        t = i * h
+        p.advance(t, h, {"u": Segment.between([math.sin(t)], [math.sin(t + h)], h)})
+        x_blocks.append(p.outputs(t + h, {})["x"])
+    relative = np.abs(np.array(x_blocks)[::100] - x) / (1.0 + np.abs(x))
+    assert np.abs(x).max() > 300                  # the paper's plant is unstable
+    assert relative.max() < 1e-7                  # measured 3.5e-8 (u as parabolas, RK4 resolving sin y)
+
+
+def test_observer_agrees_with_the_monolithic_solution_in_the_stiff_start():
+    """gamma Psi F Psi^T ~ 1e4 1/s at t = 0: the estimator's first 0.1 s at a 1e-3 s step."""
+    times = np.linspace(0.0, 2.0, 2001)
+    reference = ref.simulate(times, **ref.BOUNDED, rtol=1e-12, atol=1e-12)
+    _, x, theta_hat, x_hat = run_blocks(ref.BOUNDED, 2.0, 1e-3)
+    assert np.abs(theta_hat - reference["theta_hat"]).max() < 2e-6     # measured 6.7e-7
+    assert np.abs(x_hat - reference["x_hat"]).max() < 2e-6
+
+
+def test_the_true_parameters_are_a_fixed_point_and_give_the_true_state():
+    """x = xi + W Theta exactly (filters (2)-(6), regression (7), estimate (10)): started at the truth,
+    the observer stays there and x_hat = x while |x| grows past 100."""
+    case = ref.PAPER
+    start = dict(x_hat0=case["x0"], k_hat0=case["k"], b_hat0=case["b"], m_hat0=case["m"])
+    _, x, theta_hat, x_hat = run_blocks(case, 6.0, 1e-3, **start)
+    assert np.abs(x).max() > 100
+    assert np.abs(theta_hat - ref.true_theta(**case)).max() < 1e-5    # measured 2.8e-6
+    assert (np.abs(x_hat - x) / (1.0 + np.abs(x))).max() < 1e-6        # measured 2.6e-7
+
+
+def test_holding_y_over_the_step_costs_accuracy():
+    times = np.linspace(0.0, 3.0, 301)
+    reference = ref.simulate(times, **ref.BOUNDED)
+    deviation = {}
+    for interpolate in (True, False):
+        _, _, theta_hat, _ = run_blocks(ref.BOUNDED, 3.0, 1e-3, interpolate)
+        deviation[interpolate] = np.abs(theta_hat[::10] - reference["theta_hat"]).max()
+    assert deviation[True] < 2e-6                 # measured 6.7e-7
+    assert deviation[False] > 1e-3                # measured 4.5e-3 (a lag of h/2)
+
+
+# --- inputs inside a step -------------------------------------------------------------------
+
+def feed(history, times, values, mode):
+    """Segments as the slave builds them: interpolate (2), extrapolate (1) or hold (0)."""
+    parabolas = []
+    for k in range(1, len(times) - 1):
+        t, h = times[k], times[k + 1] - times[k]
+        if mode == "interpolate":
+            segment = Segment.between([values[k]], [values[k + 1]], h)
+        elif mode == "extrapolate":
+            segment = Segment([values[k]], [(values[k] - values[k - 1]) / (times[k] - times[k - 1])])
+        else:
+            segment = Segment.hold([values[k]])
+        parabolas.append((t, segment, history.parabolas(t, h, {"y": segment})["y"]))
+        history.commit(t, h, {"y": segment})
+    return parabolas
+
+
+def test_interpolated_inputs_become_parabolas_exact_for_quadratics():
+    times = np.array([0.0, 0.1, 0.25, 0.3, 0.5])                       # uneven steps
+    quadratic = lambda t: 1.0 - 2.0 * t + 3.0 * t ** 2                   # noqa: E731
+    parabolas = feed(QuadraticInputs(), times, quadratic(times), "interpolate")
+    assert parabolas[0][2].curvature == 0.0                              # no history yet: the chord
+    for t, _, parabola in parabolas[1:]:
+        for s in np.linspace(0.0, parabola.h, 7):
+            assert parabola.at(s) == pytest.approx(quadratic(t + s), abs=1e-12)
+
+
+@pytest.mark.parametrize("mode", ["extrapolate", "hold"])
+def test_held_or_extrapolated_inputs_are_left_as_they_are(mode):
+    times = np.linspace(0.0, 1.0, 11)
+    for t, segment, parabola in feed(QuadraticInputs(), times, np.sin(3 * times), mode):
+        assert parabola.curvature == 0.0
+        assert (parabola.start, parabola.slope) == (segment.start[0], segment.slope[0])
+
+
+# --- bad input: clear, early, naming the parameter -------------------------------------------
+
+@pytest.mark.parametrize("options, message", [
+    (dict(C=[1.0, 0.0, 0.0]), r"A: A\(t\) must return shape \(3, 3\)"),
+    (dict(C=[0.0, 0.0]), "C: the output vector is zero"),
+    (dict(C=[1.0, float("nan")]), r"C: entry \(2,\) is not finite"),
+    (dict(L=lambda t: np.zeros(2)), r"L: A0\(t\) = A\(t\) - L\(t\) C\^T has the eigenvalue"),
+    (dict(L=lambda t: np.zeros(3)), r"L: L\(t\) must return shape \(2,\)"),
+    (dict(A="plants.paper001:A_paper"), "A: expected a function of time"),
+    (dict(f=lambda y: float("nan")), r"f: f\(0\) or f\(1\) is not finite"),
+    (dict(f=lambda y: np.ones(2)), r"f: f\(y\) must return one number"),
+    (dict(gamma=-1.0), "gamma: must be > 0"),
+    (dict(beta=0.0), "beta: must be > 0"),
+    (dict(f0=float("inf")), "f0: entry"),
+    (dict(x_hat0=[1.0, 2.0, 3.0]), "x_hat0: expected 2 entries"),
+    (dict(max_substep=0.0), "max_substep: must be > 0"),
+])
+def test_observer_rejects_bad_configuration(options, message):
+    arguments = dict(A=A_paper, C=C, L=L_paper, f=f_sin) | options
+    with pytest.raises(ParameterError, match=message):
+        LTVAdaptiveObserver(**arguments)
+
+
+@pytest.mark.parametrize("options, message", [
+    (dict(k=[1.0]), "k: expected 2 entries"),
+    (dict(x0=[0.0, float("inf")]), r"x0: entry \(2,\) is not finite"),
+    (dict(A=lambda t: np.eye(3)), r"A: A\(t\) must return shape \(2, 2\)"),
+    (dict(max_dy=-1.0), "max_dy: must be > 0"),
+])
+def test_plant_rejects_bad_configuration(options, message):
+    arguments = dict(A=A_paper, C=C, f=f_sin, **ref.BOUNDED) | options
+    with pytest.raises(ParameterError, match=message):
+        OutputNonlinearLTVPlant(**arguments)
+
+
+def test_noise_parameters_are_checked():
+    with pytest.raises(ParameterError, match="noise_std: must be >= 0"):
+        SampledNoise(-0.1, 1e-3, 0)
+
+
+def observer_state(o):
+    return o.S.copy(), o.estimator.theta_hat.copy(), o.estimator.P.copy(), o.get_state()["inputs"]._last.copy()
+
+
+def test_a_non_finite_input_is_refused_and_the_state_kept():
+    o = observer()
+    o.advance(0.0, 1e-3, {"u": Segment.hold([0.0]), "y": Segment.between([1.0], [1.1], 1e-3)})
+    before = observer_state(o)
+    with pytest.raises(SignalError, match="not finite|non-finite"):
+        o.advance(1e-3, 1e-3, {"u": Segment.hold([0.0]), "y": Segment.between([1.1], [float("nan")], 1e-3)})
+    after = observer_state(o)
+    for a, b in zip(before[:3], after[:3]):
+        np.testing.assert_array_equal(a, b)
+    assert before[3] == after[3]
+
+
+def test_filters_growing_because_A0_is_unstable_stop_the_observer_with_a_clear_error():
+    """Frozen-time checks (t = 0..10) cannot prove uniform stability; growth is caught while running."""
+    def late_unstable_L(t):
+        return L_paper(t) if t < 11.0 else L_paper(t) + np.array([-5.0, 0.0])   # A0 = [[5, 1], [-9, 0]]
+
+    o = observer(L=late_unstable_L)
+    step = {"u": Segment.hold([0.0]), "y": Segment.hold([0.0])}
+    t = 11.0
+    with pytest.raises(ParameterError, match=r"L: the filter transition matrix Phi reached .* not uniformly stable"):
+        for _ in range(200):
+            before = o.S.copy()
+            o.advance(t, 0.1, step)
+            t += 0.1
+    np.testing.assert_array_equal(o.S, before)
+    assert 15.0 < t < 20.0                        # |Phi| ~ e^{2.5 (t - 11)} reaches 1e8 after ~7 s
