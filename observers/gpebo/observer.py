@@ -1,0 +1,176 @@
+r"""Discrete adaptive observer of paper 000 (GPEBO + DREM), as a block.
+
+One :meth:`GpeboObserver.advance` is one sample ``k`` (the step must be ``Ts``)
+and uses ``u(k)``, ``y(k)``, the input values at the step start:
+
+1. *Generator coefficients.*  Row ``(zeta(k), rho(k))`` of the input-output
+   regression (16) (:class:`~observers.gpebo.regression.ExampleRegression`),
+   :class:`~observers.estimation.DiscreteDREM` with delays ``1 .. 4``
+   (18)-(19), row-normalised, and the update of Statement 2; then
+   ``gamma_hat = sigma^L(sigma_hat)`` (stage 1).
+2. *Generator initial states.*  If ``gamma_hat`` moved by more than
+   ``restart_tol`` since the filters were started, restart them
+   (:class:`~observers.gpebo.filters.GpeboFilters`) at this sample with the
+   new ``Gamma_hat``, warm-starting ``eta_hat`` with the current ``xi_hat``.
+   Once the filters are ``n`` samples old, ``y(k) = phi_y(k) eta`` is exact
+   and feeds a second DiscreteDREM (delays ``1 .. N-1``) for ``eta = xi(t0)``.
+3. *State.*  The filters advance with ``u(k)``, ``y(k)``; the outputs at
+   ``k + 1`` are ``x_hat(k+1) = phi_x(k+1) eta_hat + e_hat(k+1)`` (3) and
+   ``xi_hat(k+1) = Phi(k+1) eta_hat`` -> ``beta_hat``, ``theta_hat``: a
+   one-sample prediction from ``y(0 .. k)``, so the block has no direct
+   feedthrough.
+
+Excitation certificate.  With an exact regression Statement 2 gives
+``sigma_tilde(k) = nu_gamma(k) sigma_tilde(0)``,
+``nu_gamma = prod_j k_gamma / (k_gamma + Delta_j^2)``; the same for ``eta``
+since the last restart (``nu_eta``).  ``excited = 1`` when both are below
+``excitation_tol``: the estimates are then determined by the data, whatever
+the initial guesses were.  ``excited = 0`` says the regressions have not
+been exciting (e.g. a constant input): the estimates are not to be trusted.
+"""
+
+from __future__ import annotations
+
+import copy
+from typing import Mapping
+
+import numpy as np
+
+from observers.block import Block, Segment
+from observers.checks import ParameterError, as_vector, finite_signal, require_positive
+from observers.estimation import DelayExtension, DiscreteDREM
+
+from .filters import GpeboFilters
+from .model import GeneratorModel, require_sample_step
+from .regression import ExampleRegression
+
+__all__ = ["GpeboObserver"]
+
+
+class GpeboObserver(Block):
+    r"""Adaptive observer of paper 000's example: ``gamma``, ``eta = xi(t0)`` and ``x``.
+
+    Parameters
+    ----------
+    model : GeneratorModel
+        The example's structure (see :class:`~observers.gpebo.regression.ExampleRegression`).
+    Ts : float
+        Sample period (s): the only communication step accepted.
+    k_gamma, k_eta : float
+        Gains ``k_i > 0`` of Statement 2 for the two DREMs (rows are
+        normalised, so ``Delta^2 <= 1``; small ``k`` is fast: the error
+        shrinks by ``1 + Delta^2 / k`` per sample).
+    gamma_hat0 : array_like, shape (2,)
+        Initial ``[gamma_beta, gamma_theta]``; ``gamma_beta`` nonzero.
+    eta_hat0 : array_like, shape (N,), optional
+        Initial ``xi_hat(0)`` (zeros by default).
+    x_hat0 : array_like, shape (n,), optional
+        Initial state estimate (zeros by default).
+    restart_tol : float
+        Relative change of ``gamma_hat`` that restarts the filters.
+    excitation_tol : float
+        Threshold on ``nu_gamma`` and ``nu_eta`` for ``excited``.
+
+    Ports: inputs ``u``, ``y``; outputs ``x_hat`` (n), ``gamma_hat`` (2),
+    ``eta_hat`` (N), ``beta_hat``, ``theta_hat`` (n), ``excited``,
+    ``nu_gamma``, ``nu_eta``, ``restart_time``.
+    """
+
+    def __init__(self, model: GeneratorModel, Ts: float, k_gamma: float = 1e-8, k_eta: float = 1e-8,
+                 gamma_hat0=(-0.5, 0.5), eta_hat0=None, x_hat0=None, restart_tol: float = 1e-11,
+                 excitation_tol: float = 1e-9):
+        self.model = model
+        self.regression = ExampleRegression(model)
+        self.Ts = require_positive("Ts", Ts)
+        self.k_gamma = require_positive("k_gamma", k_gamma)
+        self.k_eta = require_positive("k_eta", k_eta)
+        self.restart_tol = require_positive("restart_tol", restart_tol)
+        self.excitation_tol = require_positive("excitation_tol", excitation_tol)
+        gamma_hat0 = as_vector("gamma_hat0", gamma_hat0, 2)
+        if gamma_hat0[0] == 0:
+            raise ParameterError("gamma_hat0: gamma_beta (entry 1) must be nonzero; the regression is "
+                                 "divided by it (the paper assumes gamma_beta != 0)")
+        N, n = model.N, model.n
+        eta_hat0 = np.zeros(N) if eta_hat0 is None else as_vector("eta_hat0", eta_hat0, N)
+        x_hat0 = np.zeros(n) if x_hat0 is None else as_vector("x_hat0", x_hat0, n)
+
+        p = self.regression.p
+        self.gamma_drem = DiscreteDREM(DelayExtension(range(1, p)), self.k_gamma,
+                                       theta0=self.regression.sigma(*gamma_hat0))
+        self.eta_drem = DiscreteDREM(DelayExtension(range(1, N)), self.k_eta, theta0=eta_hat0)
+        self.filter_gammas = gamma_hat0
+        self.filters = GpeboFilters(model, self._transition(gamma_hat0), x_hat0)
+        self.window = np.zeros((self.regression.window, 2))  #: [u, y] of samples k-6 .. k, oldest first
+        self.samples = 0
+        self.nu_gamma = 1.0
+        self.nu_eta = 1.0
+        self.restart_time = 0.0
+        self.input_sizes = {"u": 1, "y": 1}
+        self.output_sizes = {"x_hat": n, "gamma_hat": 2, "eta_hat": N, "beta_hat": 1, "theta_hat": n,
+                             "excited": 1, "nu_gamma": 1, "nu_eta": 1, "restart_time": 1}
+
+    # ------------------------------------------------------------------ pieces
+    def _transition(self, gammas) -> np.ndarray:
+        return self.model.transition(*self.regression.full_coefficients(gammas))
+
+    @property
+    def gamma_hat(self) -> np.ndarray:
+        """``[gamma_beta_hat, gamma_theta_hat] = sigma^L(sigma_hat)``."""
+        return self.regression.gammas(self.gamma_drem.theta_hat)
+
+    @property
+    def excited(self) -> bool:
+        return self.nu_gamma < self.excitation_tol and self.nu_eta < self.excitation_tol
+
+    def _moved(self, gammas: np.ndarray) -> bool:
+        scale = max(1.0, float(np.max(np.abs(gammas))))
+        return float(np.max(np.abs(gammas - self.filter_gammas))) > self.restart_tol * scale
+
+    # ------------------------------------------------------------------ Block
+    def get_state(self) -> dict:
+        """Deep copy of the evolving attributes; the fixed structure (model, regression, sizes) is shared."""
+        shared = (self.model, self.regression, self.input_sizes, self.output_sizes)
+        return copy.deepcopy(vars(self), {id(item): item for item in shared})
+
+    def outputs(self, t: float, inputs: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+        eta_hat = self.eta_drem.theta_hat
+        beta, theta, _ = self.model.coefficients(self.filters.generator_estimate(eta_hat))
+        return {"x_hat": self.filters.state_estimate(eta_hat), "gamma_hat": self.gamma_hat,
+                "eta_hat": eta_hat.copy(), "beta_hat": np.array([beta]), "theta_hat": theta,
+                "excited": np.array([float(self.excited)]), "nu_gamma": np.array([self.nu_gamma]),
+                "nu_eta": np.array([self.nu_eta]), "restart_time": np.array([self.restart_time])}
+
+    def advance(self, t: float, h: float, inputs: Mapping[str, Segment]) -> None:
+        """Process sample ``k`` (``u(k)``, ``y(k)`` = input values at the step start)."""
+        require_sample_step(h, self.Ts)
+        u = float(finite_signal("u", inputs["u"].start)[0])
+        y = float(finite_signal("y", inputs["y"].start)[0])
+        self.model.nonlinearity(y)  # a bad f(y) is refused before anything changes
+        saved = self.get_state()
+        try:
+            self._sample(t, u, y)
+        except Exception:
+            self.set_state(saved)
+            raise
+
+    def _sample(self, t: float, u: float, y: float) -> None:
+        # step 1: gamma from the input-output regression (16), DREM (18)-(19), Statement 2
+        self.window = np.vstack([self.window[1:], [u, y]])
+        self.samples += 1
+        if self.samples >= self.regression.window:
+            zeta, rho = self.regression.row(self.window[:, 0], self.window[:, 1])
+            self.gamma_drem.update(zeta, rho)
+            self.nu_gamma *= self.k_gamma / (self.k_gamma + self.gamma_drem.delta ** 2)
+        gammas = self.gamma_hat
+        if self._moved(gammas):
+            eta_hat = self.eta_drem.theta_hat
+            xi_hat, x_hat = self.filters.generator_estimate(eta_hat), self.filters.state_estimate(eta_hat)
+            self.filters.restart(self._transition(gammas), x_hat)
+            self.eta_drem.reset(xi_hat)
+            self.filter_gammas, self.nu_eta, self.restart_time = gammas, 1.0, t
+        # step 2: eta = xi(t0) from y = phi_y eta (4), DREM with delays (17)-(19)
+        if self.filters.exact:
+            self.eta_drem.update(y, self.filters.phi_y)
+            self.nu_eta *= self.k_eta / (self.k_eta + self.eta_drem.delta ** 2)
+        # step 3: the filters (hence x_hat = phi_x eta_hat + e_hat) move to sample k + 1
+        self.filters.advance(u, y)
