@@ -1,0 +1,327 @@
+r"""Observer of state and sinusoidal disturbance with finite-time DREM (paper 003) as a block.
+
+Plant (1): ``x' = A x + B [theta^T x + f]``, ``y = C x``, ``theta = H xi(0)``
+constant (``Gamma = 0``), ``f`` a sum of ``N`` sinusoids of unknown
+frequencies, amplitudes and phases, relative degree ``r``.  Only ``y`` is
+measured.  Four stages run side by side, each on its own finite-time DREM
+(:class:`~observers.estimation.FiniteTimeDREM`, eqs. (11)-(12), (18)-(19),
+(21)-(22), advanced with the exact exponential update of the scalar laws --
+``gamma Delta^2`` reaches 1e10 1/s):
+
+1. ``x_tilde(0)``, the initial error of the unknown-input observer (7)-(8),
+   from regression (10) -- exact in finite time (identified once ``nu_1 < mu``);
+2. ``xi(0)`` (its free entries) and the annihilator of ``f`` (``omega^2`` for
+   ``N = 1``) from regression (17);
+3. the amplitudes of ``f_bar`` from (20), then ``f_hat`` by (23);
+4. the state ``x_hat``: for ``r = 1`` it is ``z_bar + G_0 y`` (exact after
+   stage 1); for ``r >= 2`` an observer of the identified plant with an
+   FT-DREM on its initial error (:mod:`~observers.uio.identified_plant`),
+   started once stages 2 and 3 are identified.  Before that ``x_hat`` is the
+   derivative-free part ``z_bar + G_0 y`` of (8) (``y`` at the last
+   communication point).
+
+Regressions (14)-(17), (20) hold only up to decaying filter transients, so
+stages 2-4 converge asymptotically; each reports when it is identified
+(:mod:`~observers.uio.settling`) and then stops adapting.  See
+:mod:`~observers.uio.regressions` for the derivation and the consistent
+form of (16)-(17), and ``docs/paper003.md`` for measured numbers.
+
+Every filter of stages 1-2 is one LTI system driven by ``y``
+(:class:`~observers.uio.regressions.RegressionSignals`), advanced exactly for
+``y`` linear over the step (use interpolated coupling: a held ``y`` lags by
+``h/2``).  The DREM laws take their regressors at the start of each step,
+held over it.
+"""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass
+from typing import Mapping
+
+import numpy as np
+
+from observers.block import Block, Segment
+from observers.checks import ParameterError, as_matrix, as_vector, finite_signal, require_positive
+from observers.estimation import FilterBankExtension, FiniteTimeDREM
+
+from .design import UIODesign
+from .harmonic import harmonic_regressor, undo_filter
+from .identified_plant import IdentifiedPlantObserver
+from .regressions import RegressionSignals, frequencies_from_annihilator
+from .settling import RUNNING, SETTLED, TIMED_OUT, SettlingDetector
+
+__all__ = ["UIOSettings", "UIOFiniteTimeObserver"]
+
+
+@dataclass
+class UIOSettings:
+    """Tuning of the observer; the defaults are the paper's example (section "Mathematical modelling").
+
+    Attributes
+    ----------
+    lambdas : (3,) filter rates ``lambda_1, lambda_2, lambda_3`` of (10), (14), (17) (paper: 10).
+    gamma : (4,) FT-DREM gains of stages 1-4 (paper: 1e6).
+    mu : FT-DREM switching level in (0, 1) (paper: 0.98).
+    rates : extension filter rates ``a_i`` (filters ``a_i/(p + a_i)``) of each stage's DREM,
+        ``p_k - 1`` distinct values for ``p_k`` unknowns; ``None``: :func:`default_rates`.
+    settle_tol, settle_window, t_identify : identification test of stages 2-4
+        (:class:`~observers.uio.settling.SettlingDetector`: tolerance, quiet window, timeout).
+    normalize : row-normalise the extended regressions before mixing (default False, the
+        paper's ``Delta = det``; normalised, ``gamma Delta^2 <= gamma`` is too slow for stage 2).
+    filter_order : order of the filter of (14), ``>= r``; ``None``: ``r + 1``
+        (see :class:`~observers.uio.regressions.RegressionSignals`).
+    """
+
+    lambdas: tuple = (10.0, 10.0, 10.0)
+    gamma: tuple = (1e6, 1e6, 1e6, 1e6)
+    mu: float = 0.98
+    rates: list | None = None
+    settle_tol: float = 1e-6
+    settle_window: float = 0.5
+    t_identify: float = 10.0
+    normalize: bool = False
+    filter_order: int | None = None
+
+
+def default_rates(count: int, lam: float) -> np.ndarray:
+    """``count`` distinct extension rates ``lam, lam/2, lam/3, ...`` (``[10, 5]`` for stage 2 of the paper)."""
+    return lam / np.arange(1, count + 1)
+
+
+class UIOFiniteTimeObserver(Block):
+    r"""Paper 003's observer of ``x``, ``xi(0)``, ``omega`` and ``f`` from ``y`` alone.
+
+    Parameters
+    ----------
+    A : (n, n) array_like
+    B, C : (n,) array_like
+        Single input, single output.
+    r : int
+        Relative degree; checked: ``C A^k B = 0`` for ``k < r - 1`` and
+        ``rank(C A^(r-1) B) = rank B``.
+    L : (n,) array_like
+        Gain of (2); ``F = M - L C`` must be Hurwitz.
+    H : (n, m) array_like
+        ``theta = H xi``.
+    B_bar : (n,) array_like
+        Row with ``B_bar B = 1`` (picks the row of (16)).
+    z0 : (n,) array_like
+        ``z_r(0)`` of the chain (7) (the paper's ``z_2(0)``).  Not ``x_hat(0)``:
+        that would need ``y^(r-1)(0)``.
+    xi0_free : (m,) array_like of 0/1
+        Entries of ``xi(0)`` to estimate.
+    xi0_known : (m,) array_like
+        Values of the others (paper: ``theta_1 = 0`` known).
+    harmonics : int
+        Number ``N`` of sinusoids in ``f`` (Assumption 1).
+    settings : UIOSettings, optional
+
+    Ports: input ``y``; outputs ``x_hat`` (n), ``x_tilde0_hat`` (n), ``xi0_hat`` (m),
+    ``theta_hat`` (n), ``omega_hat`` (N), ``f_hat`` (1), ``identified`` (4; per stage
+    0 running, 1 identified, 2 stopped at the timeout without settling) and
+    ``t_identified`` (4; the time, -1 before).
+    """
+
+    def __init__(self, A, B, C, r, L, H, B_bar, z0, xi0_free, xi0_known, harmonics=1,
+                 settings: UIOSettings | None = None):
+        s = settings or UIOSettings()
+        self.design = d = UIODesign.create(A, B, C, r, L)
+        n = d.n
+        self.H = as_matrix("H", H, shape=(n, None))
+        m = self.H.shape[1]
+        self.B_bar = as_vector("B_bar", B_bar, n)
+        if abs(self.B_bar @ d.B - 1.0) > 1e-9:
+            raise ParameterError(f"B_bar: B_bar B must be 1, got {self.B_bar @ d.B:.6g}")
+        free = as_vector("xi0_free", xi0_free, m)
+        if not np.all(np.isin(free, (0.0, 1.0))):
+            raise ParameterError(f"xi0_free: entries must be 0 (known) or 1 (estimated), got {free.tolist()}")
+        self.free = free.astype(bool)
+        self.xi0_known = as_vector("xi0_known", xi0_known, m)
+        if float(harmonics) != int(harmonics) or int(harmonics) < 1:
+            raise ParameterError(f"harmonics: expected an integer >= 1, got {harmonics!r}")
+        self.harmonics = N = int(harmonics)
+        self.lambdas = as_vector("lambdas", s.lambdas, 3)
+        for i, lam in enumerate(self.lambdas):
+            require_positive(f"lambda{i + 1}", lam)
+        self.gamma = as_vector("gamma", s.gamma, 4)
+        self.mu = float(as_vector("mu", s.mu, 1)[0])
+        self.normalize = bool(s.normalize)
+        m_u = int(self.free.sum())
+        self.sizes = (d.V.shape[1], m_u + N + N * m_u, 2 * N, n)           # unknowns of stages 1-4
+        rates = s.rates if s.rates is not None else [default_rates(p - 1, self.lambdas[0]) for p in self.sizes]
+        if len(rates) != 4:
+            raise ParameterError(f"rates: expected the extension rates of 4 stages, got {len(rates)}")
+        self.rates = [as_vector(f"rates{k + 1}", rates[k], p - 1) for k, p in enumerate(self.sizes)]
+        self.signals = RegressionSignals(d, self.H, self.B_bar, self.free, self.xi0_known, N, self.lambdas,
+                                         as_vector("z0", z0, n), s.filter_order)
+        self.stage = [self._drem(k) for k in range(3)]
+        self._settle = (s.settle_tol, s.settle_window, s.t_identify)
+        self.detectors = [SettlingDetector(*self._settle) for _ in range(2)]   # stages 2, 3; stage 4 on start
+        self.state_stage: IdentifiedPlantObserver | None = None
+        self.state_detector: SettlingDetector | None = None
+        self.w = self.signals.w0.copy()
+        self.y_last = 0.0
+        self.input_sizes = {"y": 1}
+        self.output_sizes = {"x_hat": n, "x_tilde0_hat": n, "xi0_hat": m, "theta_hat": n, "omega_hat": N,
+                             "f_hat": 1, "identified": 4, "t_identified": 4}
+
+    def _drem(self, k: int) -> FiniteTimeDREM:
+        return FiniteTimeDREM(FilterBankExtension(self.rates[k]), self.gamma[k], self.mu,
+                              normalize=self.normalize)
+
+    # ------------------------------------------------------------------ estimates
+    @property
+    def x_tilde0(self) -> np.ndarray:
+        """Stage 1: ``x_tilde(0)``."""
+        return self.design.V @ self.stage[0].theta_hat
+
+    @property
+    def xi0(self) -> np.ndarray:
+        """Stage 2: ``xi(0)`` (known entries as given)."""
+        xi0 = self.xi0_known.copy()
+        xi0[self.free] = self.stage[1].theta_hat[:int(self.free.sum())]
+        return xi0
+
+    @property
+    def theta(self) -> np.ndarray:
+        return self.H @ self.xi0
+
+    @property
+    def omegas(self) -> np.ndarray:
+        """Stage 2: the frequencies, from the annihilator coefficients."""
+        m_u = int(self.free.sum())
+        return frequencies_from_annihilator(self.stage[1].theta_hat[m_u:m_u + self.harmonics])
+
+    def f_hat(self, t: float) -> float:
+        """Stage 3: ``f_hat(t)`` by (23) from the current estimates."""
+        return self.disturbance_estimate()(t)
+
+    def disturbance_estimate(self):
+        """``t -> f_hat(t)`` for the current estimates (fixed: for a whole step)."""
+        omegas = self.omegas
+        b = undo_filter(self.stage[2].theta_hat, omegas, self.lambdas[1], self.signals.order)
+        return lambda t: float(harmonic_regressor(t, omegas) @ b)
+
+    def x_hat(self) -> np.ndarray:
+        """Stage 4 once started, else the derivative-free part ``z_bar + G_0 y`` of (8)."""
+        if self.state_stage is not None:
+            return self.state_stage.estimate
+        return self.signals.z_bar(self.y_last, self.w, self.x_tilde0) + self.design.G_i[0] * self.y_last
+
+    def status(self) -> list[tuple[int, float | None]]:
+        """``(status, time)`` of the four stages (status 0 running, 1 identified, 2 timed out)."""
+        switch = self.stage[0].switch_time
+        stage1 = (RUNNING, None) if switch is None else (SETTLED, switch)
+        stages = [stage1] + [(det.status, det.time) for det in self.detectors]
+        if self.design.r == 1:
+            stages.append(stage1)                     # x_hat = z_bar + G_0 y is exact after stage 1
+        elif self.state_detector is None:
+            stages.append((RUNNING, None))
+        else:
+            stages.append((self.state_detector.status, self.state_detector.time))
+        return stages
+
+    # ------------------------------------------------------------------ Block interface
+    _MUTABLE = ("w", "y_last", "stage", "detectors", "state_stage", "state_detector")
+
+    def get_state(self) -> dict:
+        """Copy of the evolving state (the design and the signal model never change)."""
+        return copy.deepcopy({name: getattr(self, name) for name in self._MUTABLE})
+
+    def set_state(self, state) -> None:
+        for name in self._MUTABLE:
+            setattr(self, name, copy.deepcopy(state[name]))
+
+    def outputs(self, t: float, inputs: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+        status = self.status()
+        return {
+            "x_hat": self.x_hat(),
+            "x_tilde0_hat": self.x_tilde0.copy(),
+            "xi0_hat": self.xi0,
+            "theta_hat": self.theta,
+            "omega_hat": self.omegas,
+            "f_hat": np.array([self.f_hat(t)]),
+            "identified": np.array([float(code) for code, _ in status]),
+            "t_identified": np.array([-1.0 if time is None else time for _, time in status]),
+        }
+
+    def advance(self, t: float, h: float, inputs: Mapping[str, Segment]) -> None:
+        """One step; on any failure the state is left as it was (snapshot/restore)."""
+        segment = inputs["y"]
+        y0 = float(finite_signal("input y", segment.start)[0])
+        dy = float(finite_signal("input y slope", segment.slope)[0])
+        snapshot = self._snapshot()
+        try:
+            self._step(t, h, y0, dy)
+        except Exception:
+            vars(self).update(snapshot)
+            raise
+
+    def _snapshot(self) -> dict:
+        """What a step may change, copied as cheaply as is safe.
+
+        Every step rebinds ``w``, ``y_last`` and the arrays of the stage-4 observer (a shallow
+        copy keeps the old ones); only running estimators and the detectors change inside.
+        """
+        running = [code == RUNNING for code, _ in self.status()]
+        state_stage = self.state_stage
+        if state_stage is not None:
+            state_stage = copy.deepcopy(state_stage) if running[3] else copy.copy(state_stage)
+        return {"w": self.w, "y_last": self.y_last,
+                "stage": [copy.deepcopy(s) if r else s for s, r in zip(self.stage, running)],
+                "detectors": copy.deepcopy(self.detectors), "state_stage": state_stage,
+                "state_detector": copy.deepcopy(self.state_detector)}
+
+    def _step(self, t: float, h: float, y0: float, dy: float) -> None:
+        running = [code == RUNNING for code, _ in self.status()]
+        w, x_tilde0, xi0, omegas = self.w, self.x_tilde0.copy(), self.xi0, self.omegas
+        if running[0]:
+            q1, m1 = self.signals.stage1(y0, w)
+            self.stage[0].update(q1, m1, h)                                       # (11)-(12)
+        if running[1] or running[2]:
+            stage2 = self.signals.stage2(y0, w, x_tilde0)
+            if running[1]:
+                self.stage[1].update(stage2["Y"], stage2["phi"], h)               # (18)-(19)
+            if running[2]:
+                f_bar = stage2["q"] - stage2["s"] @ xi0                           # (20)
+                self.stage[2].update(f_bar, harmonic_regressor(t, omegas), h)     # (21)-(22)
+        if self.state_stage is not None:
+            self.state_stage.advance(t, h, y0, dy, self.theta, self.disturbance_estimate(), adapt=running[3])
+        self.w = self.signals.advance(w, h, y0, dy)
+        self.y_last = y0 + h * dy
+        self._watch(t + h)
+        if not (np.all(np.isfinite(self.w)) and np.all(np.isfinite(self.x_hat()))):
+            raise FloatingPointError(f"observer state not finite at t = {t + h:g}")
+
+    def _watch(self, t: float) -> None:
+        """Identification tests at the end of a step; start stage 4 when stages 2-3 are done."""
+        stage2, stage3 = self.detectors
+        stage2.update(t, self.stage[1].theta_hat, self.stage[1].converged)
+        stage3.update(t, self.stage[2].theta_hat, self.stage[2].converged and stage2.done)
+        for detector, drem in zip(self.detectors, self.stage[1:]):
+            _keep_average_on_timeout(detector, drem)
+        if self.design.r == 1:
+            return
+        if self.state_stage is None:
+            if stage2.done and stage3.done:
+                self.state_stage = IdentifiedPlantObserver(
+                    self.design.A, self.design.B, self.design.C, self.theta, np.linalg.eigvals(self.design.F),
+                    self.x_hat(), self.rates[3], self.gamma[3], self.mu, self.normalize)
+                self.state_detector = SettlingDetector(*self._settle, start=t)
+            return
+        drem = self.state_stage.drem
+        self.state_detector.update(t, drem.theta_hat, drem.converged)
+        _keep_average_on_timeout(self.state_detector, drem)
+
+
+def _keep_average_on_timeout(detector: SettlingDetector, drem: FiniteTimeDREM) -> None:
+    """A stage stopped without settling keeps the moving average of its estimate, not the last value.
+
+    With noisy data the high-gain laws follow the noise; the average over the last
+    ``settle_window`` seconds is the better value to keep.  (``reset(theta0)`` with ``nu = 1``
+    makes the FT-DREM estimate equal ``theta0``; the stage is no longer updated.)
+    """
+    if detector.status == TIMED_OUT and not detector.average_kept:
+        drem.reset(detector.average)
+        detector.average_kept = True
