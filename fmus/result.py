@@ -35,6 +35,14 @@ class Result:
         """Index of the communication point nearest to ``t``."""
         return int(np.argmin(np.abs(self.time - t)))
 
+    def sampled(self, interval: float) -> "Result":
+        """The rows nearest to ``t0, t0 + interval, ...`` and the last one (for smaller files)."""
+        targets = np.append(np.arange(self.time[0], self.time[-1], interval), self.time[-1])
+        right = np.clip(np.searchsorted(self.time, targets), 1, len(self.time) - 1)
+        nearer_left = targets - self.time[right - 1] <= self.time[right] - targets
+        rows = np.unique(np.where(nearer_left, right - 1, right))
+        return Result(self.time[rows], list(self.columns), self.values[rows])
+
     def to_csv(self, path: Path | str) -> None:
         header = ",".join(["time"] + self.columns)
         data = np.column_stack([self.time, self.values])

@@ -191,3 +191,26 @@ def test_builder_detects_stale_fmus(tmp_path):
     assert is_current(path, definition)
     definition.parameters[-1].value = [1.0]  # another x0
     assert not is_current(path, definition)
+
+
+def test_logging_after_a_master_run_does_not_crash_the_host(ship_fmus, capfd):
+    """fmpy's logger proxy keeps one global Python logger; the master must not leave it dangling."""
+    import gc
+
+    from fmus.master import Component, System, cosimulate
+    cosimulate(System([Component("plant", ship_fmus["ship_plant"])], []), 0.01, 1e-3)
+    gc.collect()
+    slave, _ = open_slave(ship_fmus["ship_observer"], "after")
+    with pytest.raises(FMICallException, match="error"):
+        slave.getReal([10_000])  # logs an error through fmpy's default callbacks
+    assert "get_real: KeyError: 10000" in capfd.readouterr().out
+    slave.freeInstance()
+
+
+def test_bad_interpolation_mode_is_refused_and_logged(ship_fmus, capfd):
+    slave, vr = open_slave(ship_fmus["ship_observer"], "mode")
+    slave.setupExperiment(startTime=0.0)
+    slave.enterInitializationMode()
+    slave.setInteger([vr["y_interpolation"]], [7])  # logged: "... 7 is not 0 (hold) ..."
+    assert "y_interpolation: 7 is not 0 (hold), 1 (extrapolate) or 2 (interpolate)" in capfd.readouterr().out
+    slave.freeInstance()

@@ -47,12 +47,25 @@ typedef struct {
 
 /* ------------------------------------------------------------------ logging */
 
+/* The message is passed as the format string with every '%' doubled and no variadic
+ * arguments: correct for importers that format it (printf-style) and readable for those that
+ * cannot read variadic arguments (fmpy without its logger proxy). */
 static void emit(const fmi2CallbackFunctions *callbacks, fmi2ComponentEnvironment environment,
                  const char *name, fmi2Status status, const char *category, const char *message)
 {
-    if (callbacks != NULL && callbacks->logger != NULL) {
-        callbacks->logger(environment, name, status, category, "%s", message);
+    if (callbacks == NULL || callbacks->logger == NULL) return;
+    size_t length = strlen(message), percents = 0;
+    for (size_t i = 0; i < length; i++) percents += message[i] == '%';
+    char *escaped = malloc(length + percents + 1);
+    if (escaped == NULL) return;
+    char *out = escaped;
+    for (size_t i = 0; i < length; i++) {
+        *out++ = message[i];
+        if (message[i] == '%') *out++ = '%';
     }
+    *out = '\0';
+    callbacks->logger(environment, name, status, category, escaped);
+    free(escaped);
 }
 
 static void log_message(Component *c, fmi2Status status, const char *category, const char *message)

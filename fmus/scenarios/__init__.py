@@ -49,6 +49,9 @@ class Scenario:
     coupling: str = "linear"
     summarize: Callable[[Result], Summary] | None = None
     plot: Callable[[Result, Path], None] | None = None
+    time_unit: str = "s"  #: the unit of time of the models (``h`` for the chemostat)
+    #: spacing of the rows that ``obsfmu all`` writes to CSV (None: every communication point)
+    output_interval: float | None = None
 
 
 def _registry() -> dict[str, Scenario]:
@@ -121,7 +124,7 @@ def system(scenario: Scenario, fmus: dict[str, Path], overrides=()) -> System:
 
 def run(name: str, build_dir: Path | str = "build", *, stop_time: float | None = None,
         step: float | None = None, order: str | None = None, coupling: str | None = None,
-        overrides=(), progress: bool = False) -> tuple[Result, Summary | None]:
+        overrides=(), progress: bool = False, tolerance: float = 1e-6) -> tuple[Result, Summary | None]:
     """Build (if needed) and co-simulate scenario ``name``; returns the result and its summary."""
     scenario = get(name)
     fmus = ensure_fmus(scenario, Path(build_dir))
@@ -130,5 +133,6 @@ def run(name: str, build_dir: Path | str = "build", *, stop_time: float | None =
                         step=scenario.step if step is None else step,
                         order=order or scenario.order,
                         coupling=coupling or scenario.coupling,
-                        progress=progress)
+                        progress=progress,
+                        tolerance=tolerance)
     return result, scenario.summarize(result) if scenario.summarize else None

@@ -186,7 +186,7 @@ def _scenario(name, description, unknowns, stop_time, step):
     return Scenario(name=name, description=description, definitions=definitions,
                     components=[(instance, model, starts.get(instance, {})) for instance, model in COMPONENTS],
                     connections=CONNECTIONS, stop_time=stop_time, step=step, order="gauss-seidel",
-                    coupling="linear", summarize=summarize, plot=plot)
+                    coupling="linear", summarize=summarize, plot=plot, output_interval=1e-2)
 
 
 SCENARIOS = [

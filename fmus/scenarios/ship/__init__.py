@@ -150,4 +150,5 @@ SCENARIO = Scenario(
     coupling="linear",
     summarize=summarize,
     plot=plot,
+    output_interval=1e-3,
 )

@@ -96,6 +96,8 @@ SCENARIO = Scenario(
                  Connection("plant.y", "observer.y")],
     stop_time=30.0,
     step=2e-3,
+    time_unit="h",
+    output_interval=1e-2,
     order="gauss-seidel",
     coupling="linear",
     summarize=summarize,

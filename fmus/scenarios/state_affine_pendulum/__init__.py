@@ -108,6 +108,7 @@ SCENARIO = Scenario(
     step=1e-3,
     order="gauss-seidel",
     coupling="linear",
+    output_interval=1e-2,
     summarize=summarize,
     plot=plot,
 )
