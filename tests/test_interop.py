@@ -14,7 +14,6 @@ from xml.etree import ElementTree
 
 import numpy as np
 import pytest
-from scipy.linalg import expm
 
 from fmus import cli
 from fmus.export import export
@@ -29,17 +28,8 @@ from libcosimpy.CosimObserver import CosimObserver  # noqa: E402
 
 log_output_level(CosimLogLevel.ERROR)
 
-A = np.array([[0.0, 1.0], [-2.0, 3.0]])
-B = np.array([[0.0], [1.0]])
-C = np.array([[1.0, 0.0]])
-K = np.array([[398.0, 43.0]])
-N = np.array([[83.0], [1847.0]])
-AE = np.block([[A, -B @ K], [N @ C, A - N @ C - B @ K]])
-XE0 = np.array([0.05, 0.2, 0.0, 0.0])
-
-
-def ship_exact(times):
-    return np.array([expm(AE * t) @ XE0 for t in times])
+from reference.paper002 import K
+from reference.paper002 import exact as ship_exact
 
 
 def libcosim_run(execution: CosimExecution, watch: list[tuple[str, str]], steps: int) -> np.ndarray:

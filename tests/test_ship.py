@@ -1,7 +1,7 @@
 """Acceptance of paper 002's ship scenario through FMUs (issue 3).
 
-The monolithic reference is written here independently: the composite system
-``xe' = Ae xe`` of paper 002, eq. (12), solved by the matrix exponential.
+The monolithic reference (``tests/reference/paper002.py``) is independent of the project: the
+composite system ``xe' = Ae xe`` of paper 002, eq. (12), solved by the matrix exponential.
 """
 
 import numpy as np
@@ -13,18 +13,9 @@ from fmus.result import Result
 from fmus.scenarios import ensure_fmus, get, run
 from fmus.scenarios.ship import paper_table
 
-A = np.array([[0.0, 1.0], [-2.0, 3.0]])
-B = np.array([[0.0], [1.0]])
-C = np.array([[1.0, 0.0]])
-K = np.array([[398.0, 43.0]])
-N = np.array([[83.0], [1847.0]])
-AE = np.block([[A, -B @ K], [N @ C, A - N @ C - B @ K]])
-XE0 = np.array([0.05, 0.2, 0.0, 0.0])
+from reference.paper002 import exact
+
 GRID = np.round(np.arange(101) * 0.01, 2)
-
-
-def exact(times):
-    return np.array([expm(AE * t) @ XE0 for t in times])
 
 
 def reference_error(result: Result) -> float:
@@ -156,5 +147,5 @@ def test_set_changes_the_plant_and_the_result_follows(build_dir):
     xe0 = np.array([-0.02, 0.2, 0.0, 0.1])
     rows = [result.index_at(t) for t in (0.1, 0.2, 0.3)]
     simulated = np.column_stack([result.vector("plant.x"), result.vector("observer.x_hat")])[rows]
-    expected = np.array([expm(AE * t) @ xe0 for t in result.time[rows]])
+    expected = exact(result.time[rows], xe0)
     assert np.max(np.abs(simulated - expected)) < 1e-5
