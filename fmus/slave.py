@@ -27,11 +27,15 @@ port ``p`` of a dynamic block therefore has an Integer parameter
   producer stepped *before* this FMU); the input follows the line from the
   previous value.
 
-The project's master sets these parameters from its stepping order.
+An importer that sends ``fmi2SetRealInputDerivatives`` (the project's master
+does) overrides the mode for that step: the input follows its derivative.
+The parameters serve importers that cannot (libcosim, ECOS: ``obsfmu export``
+sets 1 for them).
 
-Errors never crash the host: a bad parameter set, a NaN/inf input or a
-failure inside the block is logged (status fmi2Error) and ``do_step``
-returns fmi2Discard with the state unchanged.
+Errors never crash the host: a bad parameter set makes
+``exit_initialization_mode`` raise (fmi2Error through the native binary); a
+NaN/inf input or a failure inside the block is logged (status fmi2Error) and
+``do_step`` returns fmi2Discard with the state unchanged.
 """
 
 from __future__ import annotations
