@@ -67,7 +67,7 @@ def main() -> None:
     direct_time, final = best_of(args.repeats, lambda: direct(args.steps, h))
     fmu_final = np.concatenate([result.vector("plant.x")[-1], result.vector("observer.x_hat")[-1]])
     print(f"ship scenario, {args.steps} communication steps of {h:g} s, 3 blocks, best of {args.repeats}")
-    print(f"  through FMUs (fmpy + pythonfmu): {args.steps / fmu_time:10.0f} steps/s  ({fmu_time:.3f} s, "
+    print(f"  through FMUs (fmpy, native binary):{args.steps / fmu_time:10.0f} steps/s  ({fmu_time:.3f} s, "
           f"includes instantiation)")
     print(f"  Python objects called directly:  {args.steps / direct_time:10.0f} steps/s  ({direct_time:.3f} s)")
     print(f"  ratio direct / FMU:              {fmu_time / direct_time:10.2f}")
