@@ -87,6 +87,11 @@ class Parameter:
         naming = [s for axis, s in enumerate(array.shape) if not (axis in drop_axes and s == 1)]
         return cls(name, array.ravel().tolist(), list(array.shape), naming, description, unit)
 
+    @classmethod
+    def scalar(cls, name: str, value, description: str, unit: Unit = None) -> "Parameter":
+        """A single number, named without index."""
+        return cls.of(name, np.array(float(value)), description, unit)
+
     @property
     def element_names(self) -> list[str]:
         return element_names(self.name, tuple(self.naming_shape))

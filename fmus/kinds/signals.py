@@ -28,24 +28,23 @@ def source_definition(model_name: str, sines: int = 2, *, offset=0.0, amplitude=
                       description: str = "") -> FmuDefinition:
     """A source with ``sines`` sine terms; every coefficient is a parameter (default 0)."""
     zeros = np.zeros(sines)
-    scalar = lambda name, value, text, u=None: Parameter.of(name, np.array(value, dtype=float), text, u)  # noqa: E731
     return FmuDefinition(
         model_name=model_name,
         kind="signal-source",
         description=description or ("y(t) = offset + sum amplitude[i] sin(omega[i] t + phase[i]) "
                                      "+ step_height [t >= step_time] + exp_amplitude exp(-exp_rate t) + noise"),
         parameters=[
-            scalar("offset", offset, "constant term", unit),
+            Parameter.scalar("offset", offset, "constant term", unit),
             Parameter.of("amplitude", zeros if amplitude is None else amplitude, "sine amplitudes", unit),
             Parameter.of("omega", zeros if omega is None else omega, "sine angular frequencies", "rad/s"),
             Parameter.of("phase", zeros if phase is None else phase, "sine phases", "rad"),
-            scalar("step_time", step_time, "time of the step", "s"),
-            scalar("step_height", step_height, "height of the step", unit),
-            scalar("exp_amplitude", exp_amplitude, "amplitude of exp_amplitude exp(-exp_rate t)", unit),
-            scalar("exp_rate", exp_rate, "decay rate of the exponential", "1/s"),
-            scalar("noise_std", noise_std, "standard deviation of the sample-and-hold Gaussian noise", unit),
-            scalar("noise_dt", noise_dt, "hold interval of the noise", "s"),
-            scalar("noise_seed", noise_seed, "seed of the noise (a non-negative integer)"),
+            Parameter.scalar("step_time", step_time, "time of the step", "s"),
+            Parameter.scalar("step_height", step_height, "height of the step", unit),
+            Parameter.scalar("exp_amplitude", exp_amplitude, "amplitude of exp_amplitude exp(-exp_rate t)", unit),
+            Parameter.scalar("exp_rate", exp_rate, "decay rate of the exponential", "1/s"),
+            Parameter.scalar("noise_std", noise_std, "standard deviation of the sample-and-hold Gaussian noise", unit),
+            Parameter.scalar("noise_dt", noise_dt, "hold interval of the noise", "s"),
+            Parameter.scalar("noise_seed", noise_seed, "seed of the noise (a non-negative integer)"),
         ],
         inputs=[],
         outputs=[Port("y", 1, "source signal", unit, scalar=True)],

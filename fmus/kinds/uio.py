@@ -64,7 +64,6 @@ def ltv_plant_definition(model_name: str, A, B, C, H, Gamma, xi0, x0, amplitude,
     """Plant FMU of paper 003 (kind ``ltv-disturbed-plant``); ``len(amplitude)`` sinusoids."""
     A = np.asarray(A, dtype=float)
     n, m = A.shape[0], np.asarray(H, dtype=float).shape[1]
-    scalar = lambda name, value, text, unit=None: Parameter.of(name, np.array(float(value)), text, unit)  # noqa: E731
     return FmuDefinition(
         model_name=model_name,
         kind="ltv-disturbed-plant",
@@ -81,9 +80,9 @@ def ltv_plant_definition(model_name: str, A, B, C, H, Gamma, xi0, x0, amplitude,
             _sines("amplitude", amplitude, "amplitudes of the sinusoids of f"),
             _sines("omega", omega, "angular frequencies of the sinusoids of f", "rad/s"),
             _sines("phase", phase, "phases of the sinusoids of f", "rad"),
-            scalar("noise_std", noise_std, "standard deviation of the sample-and-hold measurement noise on y"),
-            scalar("noise_dt", noise_dt, "hold interval of the noise", "s"),
-            scalar("noise_seed", noise_seed, "seed of the noise (a non-negative integer)"),
+            Parameter.scalar("noise_std", noise_std, "standard deviation of the sample-and-hold measurement noise on y"),
+            Parameter.scalar("noise_dt", noise_dt, "hold interval of the noise", "s"),
+            Parameter.scalar("noise_seed", noise_seed, "seed of the noise (a non-negative integer)"),
         ],
         inputs=[],
         outputs=[
@@ -107,7 +106,6 @@ def uio_observer_definition(model_name: str, A, B, C, r, L, H, B_bar, z0, xi0_fr
     n, m = A.shape[0], np.asarray(H, dtype=float).shape[1]
     N = int(harmonics)
     probe = UIOFiniteTimeObserver(A, B, C, r, L, H, B_bar, z0, xi0_free, xi0_known, N, s)   # fails early
-    scalar = lambda name, value, text, unit=None: Parameter.of(name, np.array(float(value)), text, unit)  # noqa: E731
     return FmuDefinition(
         model_name=model_name,
         kind="uio-ftdrem-observer",
@@ -117,26 +115,26 @@ def uio_observer_definition(model_name: str, A, B, C, r, L, H, B_bar, z0, xi0_fr
             Parameter.of("A", A, "plant state matrix"),
             Parameter.of("B", np.reshape(B, (n, 1)), "plant input vector", drop_axes=(1,)),
             Parameter.of("C", np.reshape(C, (1, n)), "plant output row", drop_axes=(0,)),
-            scalar("r", r, "relative degree (C A^k B = 0 for k < r - 1, rank C A^(r-1) B = rank B)"),
+            Parameter.scalar("r", r, "relative degree (C A^k B = 0 for k < r - 1, rank C A^(r-1) B = rank B)"),
             Parameter.of("L", np.reshape(L, (n, 1)), "gain of (2): F = M - L C must be Hurwitz", drop_axes=(1,)),
             Parameter.of("H", np.reshape(H, (n, m)), "theta = H xi (Gamma = 0)"),
             Parameter.of("B_bar", np.reshape(B_bar, (1, n)), "row with B_bar B = 1 (row of (16))", drop_axes=(0,)),
             Parameter.of("z0", z0, "initial state z_r(0) of the chain (7)"),
             Parameter.of("xi0_free", xi0_free, "1: estimate this entry of xi(0), 0: known"),
             Parameter.of("xi0_known", xi0_known, "values of the known entries of xi(0)"),
-            scalar("lambda1", s.lambdas[0], "rate of the filter of (10)", "1/s"),
-            scalar("lambda2", s.lambdas[1], "rate of the filter of (14)", "1/s"),
-            scalar("lambda3", s.lambdas[2], "rate of the filter of (17)", "1/s"),
-            scalar("filter_order", 0 if s.filter_order is None else s.filter_order,
+            Parameter.scalar("lambda1", s.lambdas[0], "rate of the filter of (10)", "1/s"),
+            Parameter.scalar("lambda2", s.lambdas[1], "rate of the filter of (14)", "1/s"),
+            Parameter.scalar("lambda3", s.lambdas[2], "rate of the filter of (17)", "1/s"),
+            Parameter.scalar("filter_order", 0 if s.filter_order is None else s.filter_order,
                    "order of the filter of (14), >= r; 0: r + 1"),
             Parameter.of("gamma", np.asarray(s.gamma, dtype=float), "FT-DREM gains of stages 1-4"),
-            scalar("mu", s.mu, "FT-DREM switching level in (0, 1)"),
+            Parameter.scalar("mu", s.mu, "FT-DREM switching level in (0, 1)"),
         ] + [Parameter.of(f"rates{k + 1}", rates, f"extension filter rates of the stage-{k + 1} DREM", "1/s")
              for k, rates in enumerate(probe.rates)] + [
-            scalar("normalize", float(s.normalize), "1: row-normalise the DREM mixing, 0: raw det"),
-            scalar("settle_tol", s.settle_tol, "relative tolerance of the identification test"),
-            scalar("settle_window", s.settle_window, "quiet window of the identification test", "s"),
-            scalar("t_identify", s.t_identify, "a stage still running this long after its start is stopped", "s"),
+            Parameter.scalar("normalize", float(s.normalize), "1: row-normalise the DREM mixing, 0: raw det"),
+            Parameter.scalar("settle_tol", s.settle_tol, "relative tolerance of the identification test"),
+            Parameter.scalar("settle_window", s.settle_window, "quiet window of the identification test", "s"),
+            Parameter.scalar("t_identify", s.t_identify, "a stage still running this long after its start is stopped", "s"),
         ],
         inputs=[Port("y", 1, "measured output y", scalar=True)],
         outputs=[
