@@ -27,7 +27,12 @@ otherwise.  ``coupling="hold"`` is the plain FMI zero-order hold, which lags
 by half a step (first order instead of second).
 
 Every output of every instance is recorded at every communication point,
-``t0`` included, into a :class:`Result`.
+``t0`` included, by a :class:`Recorder` (default: :class:`MemoryRecorder`,
+which returns a :class:`Result`).
+
+Re-use.  A :class:`Session` extracts and instantiates the FMUs once and runs
+the system as often as needed (``fmi2Reset`` between runs, new start values
+each time); :func:`cosimulate` is one run of a fresh session.
 """
 
 from __future__ import annotations
@@ -49,7 +54,8 @@ from fmpy import calloc, free
 
 from .result import Result
 
-__all__ = ["Component", "Connection", "System", "SimulationError", "cosimulate", "ORDERS", "COUPLINGS"]
+__all__ = ["Component", "Connection", "System", "SimulationError", "Session", "Recorder", "MemoryRecorder",
+           "cosimulate", "ORDERS", "COUPLINGS"]
 
 ORDERS = ("gauss-seidel", "jacobi", "adaptive")
 COUPLINGS = ("linear", "hold")
@@ -114,6 +120,7 @@ class _Instance:
         self.output_values = np.zeros(len(self.outputs))
         self.input_vrs: list[int] = []
         self.input_sources: np.ndarray = np.zeros(0, dtype=int)
+        self.instantiated = False
 
     def variable(self, name: str):
         try:
@@ -191,13 +198,14 @@ class _Logger:
 class _Progress:
     """A one-line progress bar on stderr, shown only for runs longer than a second."""
 
-    def __init__(self, enabled: bool):
+    def __init__(self, enabled: bool, time_unit: str = "s"):
         self.enabled = enabled
+        self.time_unit = time_unit
         self.start = wallclock.perf_counter()
         self.last_draw = 0.0
         self.drawn = False
 
-    def update(self, fraction: float, steps: int) -> None:
+    def update(self, fraction: float, steps: int, t: float | None = None) -> None:
         if not self.enabled:
             return
         now = wallclock.perf_counter() - self.start
@@ -206,7 +214,8 @@ class _Progress:
         self.last_draw = now
         bar = "#" * int(30 * fraction)
         eta = now / max(fraction, 1e-9) - now
-        print(f"\r[{bar:<30}] {100 * fraction:5.1f}%  {steps} steps  eta {eta:5.1f} s",
+        at = f"  t = {t:.4g} {self.time_unit}" if t is not None else ""
+        print(f"\r[{bar:<30}] {100 * fraction:5.1f}%{at}  {steps} steps  eta {eta:5.1f} s",
               end="", file=sys.stderr, flush=True)
         self.drawn = True
 
@@ -350,10 +359,165 @@ class _Stepper:
             inst.slave.freeFMUstate(state)
 
 
+class Recorder:
+    """Receives the communication points of a run, ``t0`` included, in order.
+
+    Subclass it to stream rows somewhere (a file, a reduced metric) instead
+    of keeping them: :meth:`begin` gets the column names
+    (``instance.variable``), :meth:`record` each point (``values`` is only
+    valid during the call: copy what you keep), :meth:`result` is what
+    :meth:`Session.run` returns.
+    """
+
+    def begin(self, columns: list[str]) -> None:
+        self.columns = list(columns)
+
+    def record(self, t: float, values: np.ndarray) -> None:
+        raise NotImplementedError
+
+    def result(self):
+        raise NotImplementedError
+
+
+class MemoryRecorder(Recorder):
+    """Keeps every point in memory and returns a :class:`Result`."""
+
+    def begin(self, columns: list[str]) -> None:
+        super().begin(columns)
+        self.times: list[float] = []
+        self.rows: list[np.ndarray] = []
+
+    def record(self, t: float, values: np.ndarray) -> None:
+        self.times.append(float(t))
+        self.rows.append(np.array(values, dtype=float))
+
+    def result(self) -> Result:
+        values = np.array(self.rows) if self.rows else np.zeros((0, len(self.columns)))
+        return Result(np.array(self.times), list(self.columns), values.reshape(len(self.times), len(self.columns)))
+
+
+def _check_run_settings(stop_time, step, order, start_time, coupling, tolerance) -> None:
+    if order not in ORDERS:
+        raise SimulationError(f"order: {order!r} is not one of {ORDERS}")
+    if coupling not in COUPLINGS:
+        raise SimulationError(f"coupling: {coupling!r} is not one of {COUPLINGS}")
+    if not (np.isfinite(step) and step > 0):
+        raise SimulationError(f"step: must be a positive number, got {step!r}")
+    if not (np.isfinite(tolerance) and tolerance > 0):
+        raise SimulationError(f"tolerance: must be a positive number, got {tolerance!r}")
+    if not (np.isfinite(start_time) and np.isfinite(stop_time)):
+        raise SimulationError(f"start_time, stop_time: must be finite, got {start_time!r}, {stop_time!r}")
+    if not stop_time > start_time:
+        raise SimulationError(f"stop_time: must be after start_time {start_time}, got {stop_time}")
+
+
+class Session:
+    """The FMUs of ``system`` extracted and instantiated once, run as often as needed.
+
+    Use it as a context manager (or call :meth:`close`)::
+
+        with Session(system) as session:
+            first = session.run(10.0, 1e-3)
+            second = session.run(10.0, 1e-3, start={"plant": {"x0[1]": 0.5}})
+
+    Every run after the first resets the instances (``fmi2Reset``) and sets
+    the components' start values, then ``start`` (per-run overrides) on top.
+    """
+
+    def __init__(self, system: System, echo_log: bool = True):
+        names = [c.name for c in system.components]
+        if len(set(names)) != len(names):
+            raise SimulationError(f"components: instance names must be unique, got {names}")
+        self.system = system
+        self.logger = _Logger(echo_log)
+        self._unzip_root = Path(tempfile.mkdtemp(prefix="obsfmu_run_"))
+        self.instances: dict[str, _Instance] = {}
+        self._fresh = True
+        try:
+            for component in system.components:
+                self.instances[component.name] = _Instance(component, self._unzip_root, self.logger)
+            _wire(self.instances, system.connections)
+            for inst in self.instances.values():
+                inst.slave.instantiate(callbacks=self.logger.callbacks, loggingOn=True)
+                inst.instantiated = True
+        except BaseException:
+            self.close()
+            raise
+        self.columns = [f"{inst.name}.{out}" for inst in self.instances.values() for out in inst.outputs]
+
+    def __enter__(self) -> "Session":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Free the instances and delete the extracted FMUs (idempotent)."""
+        for inst in self.instances.values():
+            try:
+                if getattr(inst, "instantiated", False):
+                    inst.slave.freeInstance()
+                    inst.instantiated = False
+                inst.slave.freeLibrary()
+            except Exception:
+                pass
+        self.instances = {}
+        shutil.rmtree(self._unzip_root, ignore_errors=True)
+
+    def run(self, stop_time: float, step: float, order: str = "gauss-seidel", start_time: float = 0.0,
+            coupling: str = "linear", progress: bool = False, tolerance: float = 1e-6,
+            start: dict[str, dict[str, float]] | None = None, recorder: Recorder | None = None,
+            should_stop=None, time_unit: str = "s"):
+        """One run from ``start_time`` to ``stop_time``; see :func:`cosimulate` for the parameters.
+
+        ``start`` maps instance names to extra start values for this run only.
+        ``recorder`` receives every communication point (default: a
+        :class:`MemoryRecorder`; its :meth:`~Recorder.result` is returned).
+        ``should_stop()`` is asked after every communication point; when it
+        returns true the run ends there (the recorder has every point so far)
+        and the result's ``interrupted`` attribute is set when it has one.
+        """
+        _check_run_settings(stop_time, step, order, start_time, coupling, tolerance)
+        if not self.instances:
+            raise SimulationError("session: already closed")
+        start = start or {}
+        for name in start:
+            if name not in self.instances:
+                raise SimulationError(f"start: unknown instance {name!r}{_closest(name, self.instances)}")
+        if order == "adaptive":
+            unable = [inst.name for inst in self.instances.values() if not inst.can_save_state]
+            if unable:
+                raise SimulationError(f"order 'adaptive' rolls steps back, but {unable} cannot get/set their state")
+        if not self._fresh:
+            for inst in self.instances.values():
+                _call(inst, self.logger, "reset", inst.slave.reset)
+        self._fresh = False
+        recorder = recorder or MemoryRecorder()
+        recorder.begin(self.columns)
+        stepper = _Stepper(self.instances, self.logger, jacobi=order == "jacobi", linear=coupling == "linear")
+        starts = {c.name: {**c.start, **start.get(c.name, {})} for c in self.system.components}
+        _initialize(self.instances, starts, stepper, start_time, stop_time, self.logger)
+        loop = _Loop(recorder, should_stop or (lambda: False), _Progress(progress, time_unit))
+        loop.record(start_time, stepper.live)
+        if order == "adaptive":
+            _adaptive(stepper, start_time, stop_time, step, tolerance, 2 if coupling == "linear" else 1, loop)
+        else:
+            _fixed(stepper, start_time, stop_time, step, loop)
+        loop.progress.close(loop.steps)
+        if not loop.interrupted:
+            for inst in self.instances.values():
+                _call(inst, self.logger, "terminate", inst.slave.terminate)
+        result = recorder.result()
+        if loop.interrupted and hasattr(result, "interrupted"):
+            result.interrupted = True
+        return result
+
+
 def cosimulate(system: System, stop_time: float, step: float, order: str = "gauss-seidel",
                start_time: float = 0.0, coupling: str = "linear", progress: bool = False,
-               echo_log: bool = True, tolerance: float = 1e-6) -> Result:
-    """Run ``system`` from ``start_time`` to ``stop_time``.
+               echo_log: bool = True, tolerance: float = 1e-6, recorder: Recorder | None = None,
+               should_stop=None, time_unit: str = "s"):
+    """Run ``system`` once from ``start_time`` to ``stop_time`` (a fresh :class:`Session`).
 
     Parameters
     ----------
@@ -367,68 +531,34 @@ def cosimulate(system: System, stop_time: float, step: float, order: str = "gaus
         Error per unit step requested from the adaptive master.
     progress : bool
         Show a progress bar on stderr when the run takes longer than a second.
+    recorder : Recorder, optional
+        Receives every communication point (default: in memory).
+    should_stop : callable, optional
+        Asked after every communication point; true ends the run there.
+    time_unit : str
+        Unit of the models' time, for the progress bar.
 
     Returns
     -------
     Result
         ``time`` and every output of every instance (``instance.variable``) at
-        every communication point.
+        every communication point (or what ``recorder.result()`` returns).
     """
-    if order not in ORDERS:
-        raise SimulationError(f"order: {order!r} is not one of {ORDERS}")
-    if coupling not in COUPLINGS:
-        raise SimulationError(f"coupling: {coupling!r} is not one of {COUPLINGS}")
-    if not (np.isfinite(step) and step > 0):
-        raise SimulationError(f"step: must be a positive number, got {step!r}")
-    if not (np.isfinite(tolerance) and tolerance > 0):
-        raise SimulationError(f"tolerance: must be a positive number, got {tolerance!r}")
-    if not stop_time > start_time:
-        raise SimulationError(f"stop_time: must be after start_time {start_time}, got {stop_time}")
-    names = [c.name for c in system.components]
-    if len(set(names)) != len(names):
-        raise SimulationError(f"components: instance names must be unique, got {names}")
-
-    logger = _Logger(echo_log)
-    unzip_root = Path(tempfile.mkdtemp(prefix="obsfmu_run_"))
-    instances: dict[str, _Instance] = {}
-    try:
-        for component in system.components:
-            instances[component.name] = _Instance(component, unzip_root, logger)
-        _wire(instances, system.connections)
-        if order == "adaptive":
-            unable = [inst.name for inst in instances.values() if not inst.can_save_state]
-            if unable:
-                raise SimulationError(f"order 'adaptive' rolls steps back, but {unable} cannot get/set their state")
-        for inst in instances.values():
-            inst.slave.instantiate(callbacks=logger.callbacks, loggingOn=True)
-        stepper = _Stepper(instances, logger, jacobi=order == "jacobi", linear=coupling == "linear")
-        columns = [f"{inst.name}.{out}" for inst in instances.values() for out in inst.outputs]
-        _initialize(instances, system.components, stepper, start_time, stop_time, logger)
-        bar = _Progress(progress)
-        if order == "adaptive":
-            times, values = _adaptive(stepper, start_time, stop_time, step, tolerance, 2 if coupling == "linear" else 1, bar)
-        else:
-            times, values = _fixed(stepper, start_time, stop_time, step, bar)
-        for inst in instances.values():
-            inst.slave.terminate()
-        return Result(times, columns, values)
-    finally:
-        for inst in instances.values():
-            try:
-                inst.slave.freeInstance()
-                inst.slave.freeLibrary()
-            except Exception:
-                pass
-        shutil.rmtree(unzip_root, ignore_errors=True)
+    _check_run_settings(stop_time, step, order, start_time, coupling, tolerance)
+    with Session(system, echo_log=echo_log) as session:
+        return session.run(stop_time, step, order=order, start_time=start_time, coupling=coupling,
+                           progress=progress, tolerance=tolerance, recorder=recorder,
+                           should_stop=should_stop, time_unit=time_unit)
 
 
-def _initialize(instances, components, stepper: _Stepper, start_time, stop_time, logger) -> None:
+def _initialize(instances, starts: dict[str, dict[str, float]], stepper: _Stepper, start_time, stop_time,
+                logger) -> None:
     for inst in instances.values():
         _call(inst, logger, "setupExperiment", inst.slave.setupExperiment, None, start_time, stop_time)
         _call(inst, logger, "enterInitializationMode", inst.slave.enterInitializationMode)
-    for component in components:
-        inst = instances[component.name]
-        for variable, value in component.start.items():
+    for name, values in starts.items():
+        inst = instances[name]
+        for variable, value in values.items():
             inst.variable(variable)
             _call(inst, logger, f"setting {variable}={value}", inst.set_value, variable, value)
     stepper.settle(len(instances) + 1)
@@ -442,23 +572,40 @@ def _initialize(instances, components, stepper: _Stepper, start_time, stop_time,
     stepper.mark_communication_point()
 
 
-def _fixed(stepper: _Stepper, start_time, stop_time, step, bar: _Progress):
+class _Loop:
+    """What every stepping loop shares: recording, the stop request and the progress bar."""
+
+    def __init__(self, recorder: Recorder, should_stop, progress: "_Progress"):
+        self.recorder, self.should_stop, self.progress = recorder, should_stop, progress
+        self.steps = 0
+        self.interrupted = False
+
+    def record(self, t: float, values: np.ndarray) -> None:
+        self.recorder.record(t, values)
+
+    def accepted(self, t: float, fraction: float) -> bool:
+        """Count an accepted step ending at ``t``; False when the run must stop here."""
+        self.steps += 1
+        self.progress.update(fraction, self.steps, t)
+        if self.should_stop():
+            self.interrupted = True
+            return False
+        return True
+
+
+def _fixed(stepper: _Stepper, start_time, stop_time, step, loop: _Loop) -> None:
     steps = int(np.ceil((stop_time - start_time) / step - 1e-9))
     times = np.minimum(start_time + step * np.arange(steps + 1), stop_time)
-    values = np.empty((steps + 1, len(stepper.live)))
-    values[0] = stepper.live
     for k in range(steps):
         h = step if k < steps - 1 else times[k + 1] - times[k]  # one step length: cached discretisations
         stepper.round(times[k], h)
-        values[k + 1] = stepper.live
-        if k % 256 == 0:
-            bar.update((k + 1) / steps, k + 1)
-    bar.close(steps)
-    return times, values
+        loop.record(times[k + 1], stepper.live)
+        if not loop.accepted(times[k + 1], (k + 1) / steps):
+            return
 
 
-def _adaptive(stepper: _Stepper, start_time, stop_time, step, tolerance, order, bar: _Progress,
-              halvings: int = 12):
+def _adaptive(stepper: _Stepper, start_time, stop_time, step, tolerance, order, loop: _Loop,
+              halvings: int = 12) -> None:
     """Step doubling with rollback; see the module docstring.
 
     Step lengths are ``step * 2**k`` (``-halvings <= k``): a step and its halves reuse cached
@@ -468,8 +615,7 @@ def _adaptive(stepper: _Stepper, start_time, stop_time, step, tolerance, order, 
     """
     span = stop_time - start_time
     t, k, k_max = start_time, 0, int(np.floor(np.log2(span / 10 / step))) if span / 10 > step else 0
-    times, values = [t], [stepper.live.copy()]
-    accepted = forced = 0
+    forced = 0
     if stepper.linear:
         stepper.probe_initial_slopes(t, step * 2.0**-20)
     while stop_time - t > 1e-12 * span:
@@ -486,20 +632,18 @@ def _adaptive(stepper: _Stepper, start_time, stop_time, step, tolerance, order, 
         error = float(np.max(np.abs(fine - coarse) / (2**order - 1) / scale)) if fine.size else 0.0
         if error <= 1.0 or k <= -halvings:
             forced += error > 1.0
-            times += [t + h / 2, t + h]
-            values += [middle, fine.copy()]
+            loop.record(t + h / 2, middle)
+            loop.record(t + h, fine)
             t += h
-            accepted += 1
             stepper.free(saved)
             if error < 0.5**(order + 1):  # the doubled step is expected to pass
                 k = min(k + 1, k_max)
+            if not loop.accepted(t, (t - start_time) / span):
+                break
         else:
             stepper.restore(saved)
             stepper.free(saved)
             k = max(k - max(1, int(np.ceil(np.log2(error) / order))), -halvings)
-        bar.update((t - start_time) / span, accepted)
-    bar.close(accepted)
     if forced:
-        warnings.warn(f"adaptive master: {forced} of {accepted} steps at the smallest step "
+        warnings.warn(f"adaptive master: {forced} of {loop.steps} steps at the smallest step "
                       f"({step * 2.0**-halvings:.3g}) missed the tolerance {tolerance:g}", RuntimeWarning, stacklevel=3)
-    return np.array(times), np.array(values)

@@ -17,6 +17,7 @@ class Result:
     time: np.ndarray
     columns: list[str]
     values: np.ndarray
+    interrupted: bool = False  #: the run was stopped before its stop time
 
     def __getitem__(self, column: str) -> np.ndarray:
         try:
@@ -41,7 +42,7 @@ class Result:
         right = np.clip(np.searchsorted(self.time, targets), 1, len(self.time) - 1)
         nearer_left = targets - self.time[right - 1] <= self.time[right] - targets
         rows = np.unique(np.where(nearer_left, right - 1, right))
-        return Result(self.time[rows], list(self.columns), self.values[rows])
+        return Result(self.time[rows], list(self.columns), self.values[rows], self.interrupted)
 
     def to_csv(self, path: Path | str) -> None:
         header = ",".join(["time"] + self.columns)
