@@ -114,6 +114,8 @@ class FmuDefinition:
     kind_module: str = ""  #: module registering ``kind`` (filled in by the builder)
     options: dict[str, Any] = field(default_factory=dict)
     default_experiment: dict[str, float] | None = None
+    #: canHandleVariableCommunicationStepSize: False for blocks that accept one step length only
+    variable_step: bool = True
 
     def to_json(self) -> str:
         return json.dumps(asdict(self), indent=1)

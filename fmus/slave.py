@@ -34,7 +34,7 @@ sets 1 for them).
 
 Errors never crash the host: a bad parameter set makes
 ``exit_initialization_mode`` raise (fmi2Error through the native binary); a
-NaN/inf input or a failure inside the block is logged (status fmi2Error) and
+NaN/inf input or a failure inside the block is logged (at Discard level) and
 ``do_step`` returns fmi2Discard with the state unchanged.
 """
 
@@ -56,6 +56,7 @@ from pythonfmu.default_experiment import DefaultExperiment
 from observers.block import Block, Segment
 from observers.checks import ParameterError, finite_signal
 
+from .bundle import portable_name
 from .definition import FmuDefinition, element_unit
 from .kinds import create_block
 
@@ -94,7 +95,7 @@ class _StateUnpickler(pickle.Unpickler):
     _ALLOWED_BUILTINS = {"complex", "slice", "range", "set", "frozenset", "bytearray"}
 
     def find_class(self, module, name):
-        root = module.split(".")[0]
+        root = portable_name(module).split(".")[0]
         if root in self._ALLOWED_ROOTS or (module == "builtins" and name in self._ALLOWED_BUILTINS) or (
                 module == "collections" and name in ("OrderedDict", "deque")):
             return super().find_class(module, name)
@@ -304,7 +305,7 @@ class BlockSlave(Fmi2Slave):
             block.advance(current_time, step_size, segments)
         except Exception as exc:
             self.log(f"do_step(t={current_time:g}, h={step_size:g}) refused: {type(exc).__name__}: {exc}",
-                     Fmi2Status.error)
+                     Fmi2Status.discard)
             return False
         self._remember_inputs(current_time, step_size)
         self._time = current_time + step_size
@@ -350,7 +351,8 @@ class BlockSlave(Fmi2Slave):
     def to_xml(self, model_options=None) -> Element:
         """pythonfmu's description plus units, mode ranges and a complete ModelStructure."""
         root = super().to_xml(model_options or {})
-        root.find("CoSimulation").attrib.update(CAPABILITIES)
+        root.find("CoSimulation").attrib.update(CAPABILITIES, canHandleVariableCommunicationStepSize=str(
+            self.definition.variable_step).lower())
         self._add_units(root)
         for variable in root.iter("ScalarVariable"):
             if variable.get("name", "").endswith("_interpolation"):

@@ -1,18 +1,20 @@
 /*
- * obsfmu's FMI 2.0 co-simulation binary: forwards every FMI call to the
- * generic Python slave (fmus/slave.py, a pythonfmu Fmi2Slave) of the FMU.
+ * The BRIDGE of an obsfmu FMU: the FMI 2.0 calls -> the generic Python slave (fmus/slave.py,
+ * a pythonfmu Fmi2Slave), compiled against one Python version's headers.
  *
- * Why not pythonfmu's stock binary: it refuses fmi2SetRealInputDerivatives
- * ("FMI function not supported"), turns every Python exception into
- * fmi2Fatal, and its instantiation releases a borrowed reference.  This file
- * implements the same contract with:
+ * It is loaded by the LOADER (loader.c) with RTLD_LOCAL once libpython's symbols are global
+ * (in a Python host, or after the loader has loaded libpython); it has no NEEDED entry on
+ * libpython and exports only obsfmu_bridge(), the function table of obsfmu_native.h.  The
+ * loader checks the call sequence (FMI state machine) before anything gets here.
+ *
+ * What this part guarantees:
  *   - fmi2SetRealInputDerivatives (canInterpolateInputs = true),
  *   - fmi2Get/Set/Free/(De)SerializeFMUstate through the slave's methods,
- *   - a Python exception -> fmi2Error (logged with its message), never fatal,
- *   - do_step() returning False -> fmi2Discard.
- *
- * The FMU runs inside a Python host (fmpy, libcosimpy, ...): the interpreter
- * of the host process executes the slave.  Every entry point takes the GIL.
+ *   - status rule: a call returns the worst of its own result and of the levels the slave
+ *     logged during the call, capped at fmi2Error (never fmi2Fatal); a Python exception is
+ *     fmi2Error with its message logged; do_step() returning False is fmi2Discard,
+ *   - the slave's code is the FMU's own: the bundled package resources/<package>/ (named after
+ *     the hash of the bundled code) is imported by obsfmu_bootstrap.py, never via sys.path.
  *
  * Python side (methods of the slave instance):
  *   setup_experiment(start, stop|None, tolerance|None), enter_initialization_mode(),
@@ -27,12 +29,7 @@
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 
-#include <dlfcn.h>
-#include <stdio.h>
-#include <stdlib.h>
-#include <string.h>
-
-#include "fmi2Functions.h"
+#include "obsfmu_native.h"
 
 typedef struct {
     PyObject *slave_class;
@@ -47,47 +44,14 @@ typedef struct {
 
 /* ------------------------------------------------------------------ logging */
 
-/* The message is passed as the format string with every '%' doubled and no variadic
- * arguments: correct for importers that format it (printf-style) and readable for those that
- * cannot read variadic arguments (fmpy without its logger proxy). */
-static void emit(const fmi2CallbackFunctions *callbacks, fmi2ComponentEnvironment environment,
-                 const char *name, fmi2Status status, const char *category, const char *message)
-{
-    if (callbacks == NULL || callbacks->logger == NULL) return;
-    size_t length = strlen(message), percents = 0;
-    for (size_t i = 0; i < length; i++) percents += message[i] == '%';
-    char *escaped = malloc(length + percents + 1);
-    if (escaped == NULL) return;
-    char *out = escaped;
-    for (size_t i = 0; i < length; i++) {
-        *out++ = message[i];
-        if (message[i] == '%') *out++ = '%';
-    }
-    *out = '\0';
-    callbacks->logger(environment, name, status, category, escaped);
-    free(escaped);
-}
-
 static void log_message(Component *c, fmi2Status status, const char *category, const char *message)
 {
-    if (status == fmi2OK && !c->logging_on) {
-        return;
-    }
-    emit(&c->callbacks, c->callbacks.componentEnvironment, c->name, status, category, message);
+    if (status == fmi2OK && !c->logging_on) return;
+    obsfmu_emit(&c->callbacks, c->name, status, category, message);
 }
 
-static const char *category_of(fmi2Status status)
-{
-    switch (status) {
-    case fmi2Warning: return "logStatusWarning";
-    case fmi2Discard: return "logStatusDiscard";
-    case fmi2Error: return "logStatusError";
-    case fmi2Fatal: return "logStatusFatal";
-    default: return "logAll";
-    }
-}
-
-/* Forward the slave's queued log messages to the importer; returns the worst status. */
+/* Forward the slave's queued log messages to the importer; returns the worst level, capped at
+ * fmi2Error. */
 static fmi2Status drain_log(Component *c)
 {
     fmi2Status worst = fmi2OK;
@@ -106,10 +70,11 @@ static fmi2Status drain_log(Component *c)
         long level = status ? PyLong_AsLong(status) : 0;
         const char *category_text = (category && PyUnicode_Check(category)) ? PyUnicode_AsUTF8(category) : NULL;
         const char *msg_text = (msg && PyUnicode_Check(msg)) ? PyUnicode_AsUTF8(msg) : "";
-        if (level < fmi2OK || level > fmi2Fatal) level = fmi2OK;
-        log_message(c, (fmi2Status)level, category_text ? category_text : category_of((fmi2Status)level),
+        if (level < fmi2OK || level > fmi2Fatal) level = fmi2Error;
+        if (level == fmi2Fatal) level = fmi2Error; /* the slave cannot corrupt other instances */
+        log_message(c, (fmi2Status)level, category_text ? category_text : obsfmu_category((fmi2Status)level),
                     msg_text ? msg_text : "");
-        if (level > worst && level <= fmi2Warning) worst = (fmi2Status)level;
+        if (level > worst) worst = (fmi2Status)level;
         Py_XDECREF(status);
         Py_XDECREF(category);
         Py_XDECREF(msg);
@@ -124,7 +89,7 @@ static fmi2Status drain_log(Component *c)
 static fmi2Status python_error(Component *c, const char *where)
 {
     PyObject *type, *value, *traceback;
-    char message[2048];
+    char message[4096];
     PyErr_Fetch(&type, &value, &traceback);
     PyErr_NormalizeException(&type, &value, &traceback);
     const char *type_name = type ? ((PyTypeObject *)type)->tp_name : "error";
@@ -188,40 +153,6 @@ static char *copy_string(const char *text)
     return copy;
 }
 
-static int hex_value(char digit)
-{
-    if (digit >= '0' && digit <= '9') return digit - '0';
-    if (digit >= 'a' && digit <= 'f') return digit - 'a' + 10;
-    if (digit >= 'A' && digit <= 'F') return digit - 'A' + 10;
-    return -1;
-}
-
-/* file:///a%20b/resources, file:/a/resources or a plain path -> /a b/resources */
-static char *resource_path(const char *uri)
-{
-    const char *path = uri;
-    if (strncmp(path, "file://", 7) == 0) {
-        path += 7;
-        if (strncmp(path, "localhost/", 10) == 0) path += 9;
-    } else if (strncmp(path, "file:", 5) == 0) {
-        path += 5;
-    }
-    char *decoded = malloc(strlen(path) + 1);
-    if (decoded == NULL) return NULL;
-    size_t j = 0;
-    for (size_t i = 0; path[i]; i++) {
-        if (path[i] == '%' && hex_value(path[i + 1]) >= 0 && hex_value(path[i + 2]) >= 0) {
-            decoded[j++] = (char)(hex_value(path[i + 1]) * 16 + hex_value(path[i + 2]));
-            i += 2;
-        } else {
-            decoded[j++] = path[i];
-        }
-    }
-    while (j > 1 && decoded[j - 1] == '/') j--;
-    decoded[j] = '\0';
-    return decoded;
-}
-
 static PyObject *create_instance(Component *c)
 {
     PyObject *kwargs = Py_BuildValue("{s:s,s:s,s:O,s:O}", "instance_name", c->name, "resources", c->resources,
@@ -234,35 +165,22 @@ static PyObject *create_instance(Component *c)
     return instance;
 }
 
-/* Import resources/<slavemodule>.py and return its class of the same name. */
-static PyObject *slave_class(const char *resources, char *error, size_t error_size)
+/* The slave class of the FMU, from its own bundled package (resources/obsfmu_bootstrap.py). */
+static PyObject *slave_class(Component *c, const char *record)
 {
-    char file_name[4096];
-    char module_name[256] = {0};
-    snprintf(file_name, sizeof file_name, "%s/slavemodule.txt", resources);
-    FILE *file = fopen(file_name, "r");
-    if (file == NULL || fgets(module_name, sizeof module_name, file) == NULL) {
-        if (file) fclose(file);
-        snprintf(error, error_size, "cannot read %s", file_name);
-        return NULL;
-    }
-    fclose(file);
-    module_name[strcspn(module_name, "\r\n ")] = '\0';
-
-    PyObject *sys_path = PySys_GetObject("path"); /* borrowed */
-    PyObject *entry = PyUnicode_FromString(resources);
-    if (sys_path && entry && PySequence_Contains(sys_path, entry) == 0) {
-        PyList_Insert(sys_path, 0, entry);
-    }
-    Py_XDECREF(entry);
-    PyObject *module = PyImport_ImportModule(module_name);
-    if (module == NULL) {
-        snprintf(error, error_size, "cannot import the slave module %s", module_name);
-        return NULL;
-    }
-    PyObject *cls = PyObject_GetAttrString(module, module_name);
-    Py_DECREF(module);
-    if (cls == NULL) snprintf(error, error_size, "module %s has no class %s", module_name, module_name);
+    char package[256], module[256], name[256], bootstrap[4096];
+    obsfmu_record_value(record, "package", package, sizeof package);
+    obsfmu_record_value(record, "slave_module", module, sizeof module);
+    obsfmu_record_value(record, "slave_class", name, sizeof name);
+    snprintf(bootstrap, sizeof bootstrap, "%s/obsfmu_bootstrap.py", c->resources);
+    PyObject *runpy = PyImport_ImportModule("runpy");
+    PyObject *namespace = runpy ? PyObject_CallMethod(runpy, "run_path", "sOs", bootstrap, Py_None, "obsfmu_bootstrap") : NULL;
+    PyObject *load = namespace ? PyDict_GetItemString(namespace, "load_slave_class") : NULL; /* borrowed */
+    PyObject *cls = load ? PyObject_CallFunction(load, "ssss", c->resources, package, module, name) : NULL;
+    if (namespace && load == NULL && !PyErr_Occurred())
+        PyErr_Format(PyExc_RuntimeError, "%s defines no load_slave_class", bootstrap);
+    Py_XDECREF(namespace);
+    Py_XDECREF(runpy);
     return cls;
 }
 
@@ -277,64 +195,67 @@ static void free_component(Component *c)
     free(c);
 }
 
+/* ------------------------------------------------------------------ start-up */
+
+static int start(const char *program, char *message, size_t size)
+{
+    PyConfig config;
+    PyConfig_InitPythonConfig(&config);
+    config.install_signal_handlers = 0; /* the host owns the signals */
+    config.parse_argv = 0;
+    config.use_environment = 0;         /* PYTHONHOME/PYTHONPATH of the host are not ours */
+    config.configure_c_stdio = 0;
+    config.pathconfig_warnings = 0;     /* failures are reported through the FMI logger */
+    PyStatus status = PyConfig_SetBytesString(&config, &config.program_name, program);
+    if (!PyStatus_Exception(status)) status = Py_InitializeFromConfig(&config);
+    PyConfig_Clear(&config);
+    if (PyStatus_Exception(status)) {
+        snprintf(message, size, "starting Python from %s failed: %s%s%s", program, status.func ? status.func : "",
+                 status.func ? ": " : "", status.err_msg ? status.err_msg : "unknown error");
+        return -1;
+    }
+    PyEval_SaveThread(); /* every call takes the GIL with PyGILState_Ensure; never finalized */
+    return 0;
+}
+
 /* ------------------------------------------------------------------ FMI API */
 
-const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
-const char *fmi2GetVersion(void) { return fmi2Version; }
-
-fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2String fmuGUID,
-                              fmi2String fmuResourceLocation, const fmi2CallbackFunctions *functions,
-                              fmi2Boolean visible, fmi2Boolean loggingOn)
+static fmi2Component instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2String fmuGUID,
+                                 fmi2String fmuResourceLocation, const fmi2CallbackFunctions *functions,
+                                 fmi2Boolean visible, fmi2Boolean loggingOn)
 {
-    (void)fmuGUID;
-    const char *name = instanceName ? instanceName : "";
-    if (fmuType != fmi2CoSimulation) {
-        emit(functions, functions ? functions->componentEnvironment : NULL, name, fmi2Error, "logStatusError",
-             "this FMU supports co-simulation only");
-        return NULL;
-    }
-    if (dlsym(RTLD_DEFAULT, "Py_IsInitialized") == NULL || !Py_IsInitialized()) {
-        emit(functions, functions ? functions->componentEnvironment : NULL, name, fmi2Error, "logStatusError",
-             "this FMU runs Python: load it from a Python-based importer (fmpy, libcosimpy, ...)");
-        return NULL;
-    }
-    if (fmuResourceLocation == NULL) {
-        emit(functions, functions ? functions->componentEnvironment : NULL, name, fmi2Error, "logStatusError",
-             "fmuResourceLocation is required");
-        return NULL;
-    }
+    (void)fmuType;
+    (void)fmuGUID; /* checked by the loader */
     Component *c = calloc(1, sizeof(Component));
     if (c == NULL) return NULL;
     if (functions) c->callbacks = *functions;
-    c->name = copy_string(name);
-    c->resources = resource_path(fmuResourceLocation);
+    c->name = copy_string(instanceName ? instanceName : "");
+    c->resources = obsfmu_resource_path(fmuResourceLocation);
     c->visible = visible;
     c->logging_on = loggingOn;
-    if (c->name == NULL || c->resources == NULL) {
+    char *record = c->resources ? obsfmu_read_record(c->resources) : NULL;
+    if (c->name == NULL || record == NULL) {
+        free(record);
         free_component(c);
         return NULL;
     }
 
     PyGILState_STATE gil = PyGILState_Ensure();
-    char error[512] = {0};
-    c->slave_class = slave_class(c->resources, error, sizeof error);
+    c->slave_class = slave_class(c, record);
     if (c->slave_class != NULL) c->instance = create_instance(c);
     if (c->instance == NULL) {
-        if (PyErr_Occurred()) {
-            python_error(c, error[0] ? error : "fmi2Instantiate");
-        } else {
-            log_message(c, fmi2Error, "logStatusError", error);
-        }
+        python_error(c, "fmi2Instantiate");
         free_component(c);
-        PyGILState_Release(gil);
-        return NULL;
+        c = NULL;
+    } else {
+        drain_log(c);
     }
-    drain_log(c);
     PyGILState_Release(gil);
+    free(record);
     return c;
 }
 
-void fmi2FreeInstance(fmi2Component component)
+static void free_instance(fmi2Component component)
 {
     Component *c = (Component *)component;
     if (c == NULL) return;
@@ -343,8 +264,8 @@ void fmi2FreeInstance(fmi2Component component)
     PyGILState_Release(gil);
 }
 
-fmi2Status fmi2SetDebugLogging(fmi2Component component, fmi2Boolean loggingOn, size_t nCategories,
-                               const fmi2String categories[])
+static fmi2Status set_debug_logging(fmi2Component component, fmi2Boolean loggingOn, size_t nCategories,
+                                    const fmi2String categories[])
 {
     (void)nCategories;
     (void)categories;
@@ -353,8 +274,8 @@ fmi2Status fmi2SetDebugLogging(fmi2Component component, fmi2Boolean loggingOn, s
     return fmi2OK;
 }
 
-fmi2Status fmi2SetupExperiment(fmi2Component component, fmi2Boolean toleranceDefined, fmi2Real tolerance,
-                               fmi2Real startTime, fmi2Boolean stopTimeDefined, fmi2Real stopTime)
+static fmi2Status setup_experiment(fmi2Component component, fmi2Boolean toleranceDefined, fmi2Real tolerance,
+                                   fmi2Real startTime, fmi2Boolean stopTimeDefined, fmi2Real stopTime)
 {
     COMPONENT
     WITH_GIL({
@@ -365,17 +286,17 @@ fmi2Status fmi2SetupExperiment(fmi2Component component, fmi2Boolean toleranceDef
 }
 
 #define SIMPLE_CALL(function, method)                                   \
-    fmi2Status function(fmi2Component component)                        \
+    static fmi2Status function(fmi2Component component)                 \
     {                                                                   \
         COMPONENT                                                       \
         WITH_GIL(status_ = call(c, method, PyTuple_New(0), NULL))       \
     }
 
-SIMPLE_CALL(fmi2EnterInitializationMode, "enter_initialization_mode")
-SIMPLE_CALL(fmi2ExitInitializationMode, "exit_initialization_mode")
-SIMPLE_CALL(fmi2Terminate, "terminate")
+SIMPLE_CALL(enter_initialization_mode, "enter_initialization_mode")
+SIMPLE_CALL(exit_initialization_mode, "exit_initialization_mode")
+SIMPLE_CALL(terminate, "terminate")
 
-fmi2Status fmi2Reset(fmi2Component component)
+static fmi2Status reset(fmi2Component component)
 {
     COMPONENT
     WITH_GIL({
@@ -385,7 +306,7 @@ fmi2Status fmi2Reset(fmi2Component component)
         } else {
             Py_DECREF(c->instance);
             c->instance = fresh;
-            drain_log(c);
+            status_ = drain_log(c);
         }
     })
 }
@@ -396,9 +317,9 @@ static fmi2Status get_values(Component *c, const char *method, const fmi2ValueRe
                              PyObject **result)
 {
     fmi2Status status = call(c, method, Py_BuildValue("(N)", reference_list(vr, nvr)), result);
-    if (status > fmi2Warning) return status;
+    if (*result == NULL) return status;
     if (!PyList_Check(*result) || (size_t)PyList_Size(*result) != nvr) {
-        Py_XDECREF(*result);
+        Py_DECREF(*result);
         *result = NULL;
         log_message(c, fmi2Error, "logStatusError", "slave returned a list of the wrong length");
         return fmi2Error;
@@ -406,7 +327,7 @@ static fmi2Status get_values(Component *c, const char *method, const fmi2ValueRe
     return status;
 }
 
-fmi2Status fmi2GetReal(fmi2Component component, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[])
+static fmi2Status get_real(fmi2Component component, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[])
 {
     COMPONENT
     WITH_GIL({
@@ -418,7 +339,8 @@ fmi2Status fmi2GetReal(fmi2Component component, const fmi2ValueReference vr[], s
     })
 }
 
-fmi2Status fmi2GetInteger(fmi2Component component, const fmi2ValueReference vr[], size_t nvr, fmi2Integer value[])
+static fmi2Status get_integer(fmi2Component component, const fmi2ValueReference vr[], size_t nvr,
+                              fmi2Integer value[])
 {
     COMPONENT
     WITH_GIL({
@@ -430,7 +352,8 @@ fmi2Status fmi2GetInteger(fmi2Component component, const fmi2ValueReference vr[]
     })
 }
 
-fmi2Status fmi2GetBoolean(fmi2Component component, const fmi2ValueReference vr[], size_t nvr, fmi2Boolean value[])
+static fmi2Status get_boolean(fmi2Component component, const fmi2ValueReference vr[], size_t nvr,
+                              fmi2Boolean value[])
 {
     COMPONENT
     WITH_GIL({
@@ -441,7 +364,8 @@ fmi2Status fmi2GetBoolean(fmi2Component component, const fmi2ValueReference vr[]
     })
 }
 
-fmi2Status fmi2GetString(fmi2Component component, const fmi2ValueReference vr[], size_t nvr, fmi2String value[])
+static fmi2Status get_string(fmi2Component component, const fmi2ValueReference vr[], size_t nvr,
+                             fmi2String value[])
 {
     COMPONENT
     WITH_GIL({
@@ -468,7 +392,8 @@ static fmi2Status set_values(Component *c, const char *method, const fmi2ValueRe
     return call(c, method, Py_BuildValue("(NN)", reference_list(vr, nvr), values), NULL);
 }
 
-fmi2Status fmi2SetReal(fmi2Component component, const fmi2ValueReference vr[], size_t nvr, const fmi2Real value[])
+static fmi2Status set_real(fmi2Component component, const fmi2ValueReference vr[], size_t nvr,
+                           const fmi2Real value[])
 {
     COMPONENT
     WITH_GIL({
@@ -478,8 +403,8 @@ fmi2Status fmi2SetReal(fmi2Component component, const fmi2ValueReference vr[], s
     })
 }
 
-fmi2Status fmi2SetInteger(fmi2Component component, const fmi2ValueReference vr[], size_t nvr,
-                          const fmi2Integer value[])
+static fmi2Status set_integer(fmi2Component component, const fmi2ValueReference vr[], size_t nvr,
+                              const fmi2Integer value[])
 {
     COMPONENT
     WITH_GIL({
@@ -489,8 +414,8 @@ fmi2Status fmi2SetInteger(fmi2Component component, const fmi2ValueReference vr[]
     })
 }
 
-fmi2Status fmi2SetBoolean(fmi2Component component, const fmi2ValueReference vr[], size_t nvr,
-                          const fmi2Boolean value[])
+static fmi2Status set_boolean(fmi2Component component, const fmi2ValueReference vr[], size_t nvr,
+                              const fmi2Boolean value[])
 {
     COMPONENT
     WITH_GIL({
@@ -500,8 +425,8 @@ fmi2Status fmi2SetBoolean(fmi2Component component, const fmi2ValueReference vr[]
     })
 }
 
-fmi2Status fmi2SetString(fmi2Component component, const fmi2ValueReference vr[], size_t nvr,
-                         const fmi2String value[])
+static fmi2Status set_string(fmi2Component component, const fmi2ValueReference vr[], size_t nvr,
+                             const fmi2String value[])
 {
     COMPONENT
     WITH_GIL({
@@ -512,9 +437,9 @@ fmi2Status fmi2SetString(fmi2Component component, const fmi2ValueReference vr[],
     })
 }
 
-/* ---- FMU state */
+/* ---- FMU state (the loader wraps these with its own state machine fields) */
 
-fmi2Status fmi2GetFMUstate(fmi2Component component, fmi2FMUstate *state)
+static fmi2Status get_fmu_state(fmi2Component component, fmi2FMUstate *state)
 {
     COMPONENT
     WITH_GIL({
@@ -527,14 +452,14 @@ fmi2Status fmi2GetFMUstate(fmi2Component component, fmi2FMUstate *state)
     })
 }
 
-fmi2Status fmi2SetFMUstate(fmi2Component component, fmi2FMUstate state)
+static fmi2Status set_fmu_state(fmi2Component component, fmi2FMUstate state)
 {
     COMPONENT
     if (state == NULL) return fmi2Error;
     WITH_GIL(status_ = call(c, "set_fmu_state", Py_BuildValue("(O)", (PyObject *)state), NULL))
 }
 
-fmi2Status fmi2FreeFMUstate(fmi2Component component, fmi2FMUstate *state)
+static fmi2Status free_fmu_state(fmi2Component component, fmi2FMUstate *state)
 {
     COMPONENT
     if (state == NULL || *state == NULL) return fmi2OK;
@@ -556,7 +481,7 @@ static fmi2Status serialized(Component *c, fmi2FMUstate state, PyObject **bytes)
     return status;
 }
 
-fmi2Status fmi2SerializedFMUstateSize(fmi2Component component, fmi2FMUstate state, size_t *size)
+static fmi2Status serialized_fmu_state_size(fmi2Component component, fmi2FMUstate state, size_t *size)
 {
     COMPONENT
     if (state == NULL) return fmi2Error;
@@ -568,7 +493,8 @@ fmi2Status fmi2SerializedFMUstateSize(fmi2Component component, fmi2FMUstate stat
     })
 }
 
-fmi2Status fmi2SerializeFMUstate(fmi2Component component, fmi2FMUstate state, fmi2Byte buffer[], size_t size)
+static fmi2Status serialize_fmu_state(fmi2Component component, fmi2FMUstate state, fmi2Byte buffer[],
+                                      size_t size)
 {
     COMPONENT
     if (state == NULL) return fmi2Error;
@@ -587,8 +513,8 @@ fmi2Status fmi2SerializeFMUstate(fmi2Component component, fmi2FMUstate state, fm
     })
 }
 
-fmi2Status fmi2DeSerializeFMUstate(fmi2Component component, const fmi2Byte serializedState[], size_t size,
-                                   fmi2FMUstate *state)
+static fmi2Status deserialize_fmu_state(fmi2Component component, const fmi2Byte serializedState[], size_t size,
+                                        fmi2FMUstate *state)
 {
     COMPONENT
     WITH_GIL({
@@ -602,20 +528,10 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component component, const fmi2Byte seria
     })
 }
 
-/* ---- derivatives */
+/* ---- inputs and stepping */
 
-fmi2Status fmi2GetDirectionalDerivative(fmi2Component component, const fmi2ValueReference vUnknown_ref[],
-                                        size_t nUnknown, const fmi2ValueReference vKnown_ref[], size_t nKnown,
-                                        const fmi2Real dvKnown[], fmi2Real dvUnknown[])
-{
-    (void)vUnknown_ref; (void)nUnknown; (void)vKnown_ref; (void)nKnown; (void)dvKnown; (void)dvUnknown;
-    COMPONENT
-    log_message(c, fmi2Error, "logStatusError", "fmi2GetDirectionalDerivative is not supported");
-    return fmi2Error;
-}
-
-fmi2Status fmi2SetRealInputDerivatives(fmi2Component component, const fmi2ValueReference vr[], size_t nvr,
-                                       const fmi2Integer order[], const fmi2Real value[])
+static fmi2Status set_real_input_derivatives(fmi2Component component, const fmi2ValueReference vr[], size_t nvr,
+                                             const fmi2Integer order[], const fmi2Real value[])
 {
     COMPONENT
     WITH_GIL({
@@ -630,20 +546,8 @@ fmi2Status fmi2SetRealInputDerivatives(fmi2Component component, const fmi2ValueR
     })
 }
 
-fmi2Status fmi2GetRealOutputDerivatives(fmi2Component component, const fmi2ValueReference vr[], size_t nvr,
-                                        const fmi2Integer order[], fmi2Real value[])
-{
-    (void)vr; (void)nvr; (void)order; (void)value;
-    COMPONENT
-    log_message(c, fmi2Error, "logStatusError", "fmi2GetRealOutputDerivatives is not supported "
-                "(maxOutputDerivativeOrder = 0)");
-    return fmi2Error;
-}
-
-/* ---- stepping */
-
-fmi2Status fmi2DoStep(fmi2Component component, fmi2Real currentCommunicationPoint,
-                      fmi2Real communicationStepSize, fmi2Boolean noSetFMUStatePriorToCurrentPoint)
+static fmi2Status do_step(fmi2Component component, fmi2Real currentCommunicationPoint,
+                          fmi2Real communicationStepSize, fmi2Boolean noSetFMUStatePriorToCurrentPoint)
 {
     (void)noSetFMUStatePriorToCurrentPoint;
     COMPONENT
@@ -652,59 +556,20 @@ fmi2Status fmi2DoStep(fmi2Component component, fmi2Real currentCommunicationPoin
         status_ = call(c, "do_step", Py_BuildValue("(dd)", currentCommunicationPoint, communicationStepSize),
                        &result);
         if (result) {
-            if (PyObject_IsTrue(result) != 1) status_ = fmi2Discard;
+            if (PyObject_IsTrue(result) != 1 && status_ < fmi2Discard) status_ = fmi2Discard;
             Py_DECREF(result);
         }
     })
 }
 
-fmi2Status fmi2CancelStep(fmi2Component component)
+__attribute__((visibility("default"))) const ObsfmuBridge *obsfmu_bridge(void)
 {
-    COMPONENT
-    log_message(c, fmi2Error, "logStatusError", "fmi2CancelStep: steps are synchronous, nothing to cancel");
-    return fmi2Error;
-}
-
-fmi2Status fmi2GetStatus(fmi2Component component, const fmi2StatusKind s, fmi2Status *value)
-{
-    (void)s; (void)value;
-    COMPONENT
-    return fmi2Discard;
-}
-
-fmi2Status fmi2GetRealStatus(fmi2Component component, const fmi2StatusKind s, fmi2Real *value)
-{
-    COMPONENT
-    if (s != fmi2LastSuccessfulTime) return fmi2Discard;
-    WITH_GIL({
-        PyObject *time = PyObject_GetAttrString(c->instance, "last_successful_time");
-        if (time == NULL) {
-            status_ = python_error(c, "fmi2GetRealStatus");
-        } else {
-            *value = PyFloat_AsDouble(time);
-            Py_DECREF(time);
-        }
-    })
-}
-
-fmi2Status fmi2GetIntegerStatus(fmi2Component component, const fmi2StatusKind s, fmi2Integer *value)
-{
-    (void)s; (void)value;
-    COMPONENT
-    return fmi2Discard;
-}
-
-fmi2Status fmi2GetBooleanStatus(fmi2Component component, const fmi2StatusKind s, fmi2Boolean *value)
-{
-    COMPONENT
-    if (s != fmi2Terminated) return fmi2Discard;
-    *value = fmi2False;
-    return fmi2OK;
-}
-
-fmi2Status fmi2GetStringStatus(fmi2Component component, const fmi2StatusKind s, fmi2String *value)
-{
-    (void)s; (void)value;
-    COMPONENT
-    return fmi2Discard;
+    static const ObsfmuBridge table = {
+        OBSFMU_BRIDGE_ABI, start, instantiate, free_instance, set_debug_logging, setup_experiment,
+        enter_initialization_mode, exit_initialization_mode, terminate, reset,
+        get_real, get_integer, get_boolean, get_string, set_real, set_integer, set_boolean, set_string,
+        get_fmu_state, set_fmu_state, free_fmu_state, serialized_fmu_state_size, serialize_fmu_state,
+        deserialize_fmu_state, set_real_input_derivatives, do_step,
+    };
+    return &table;
 }
