@@ -26,7 +26,7 @@ import sysconfig
 import tempfile
 from pathlib import Path
 
-__all__ = ["NativeBuildError", "platform_folder", "loader_library", "bridge_library", "bridge_name",
+__all__ = ["NativeBuildError", "platform_folder", "fmi_headers", "loader_library", "bridge_library", "bridge_name",
            "python_record", "identity", "BOOTSTRAP", "OVERRIDE"]
 
 HERE = Path(__file__).parent
@@ -54,7 +54,8 @@ def _suffix() -> str:
     return ".dylib" if sys.platform == "darwin" else ".so"
 
 
-def _fmi_headers() -> Path:
+def fmi_headers() -> Path:
+    """The FMI 2.0 C headers (shipped with fmpy)."""
     import fmpy
     headers = Path(fmpy.__file__).parent / "c-code"
     if not (headers / "fmi2Functions.h").is_file():
@@ -85,7 +86,7 @@ def _compiled(stem: str, source: Path, flags: list[str], key_material: str) -> P
     with tempfile.TemporaryDirectory(dir=target.parent) as temp:
         output = Path(temp) / target.name
         command = [_compiler(), "-shared", "-fPIC", "-O2", "-Wall", "-fvisibility=hidden", "-o", str(output),
-                   str(source), f"-I{HERE}", f"-I{_fmi_headers()}", *flags]
+                   str(source), f"-I{HERE}", f"-I{fmi_headers()}", *flags]
         completed = subprocess.run(command, capture_output=True, text=True)
         if completed.returncode != 0:
             raise NativeBuildError("compiling the FMU binary failed:\n" + " ".join(command) + "\n"

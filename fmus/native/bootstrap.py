@@ -7,9 +7,9 @@ runs this file with :func:`runpy.run_path` at every instantiation and calls
 ``sys.path`` -- so every FMU runs its own code, whatever else the process has imported.
 
 FMUs with the same code hash share the package (their code is identical).  When another
-extraction of the same code appears (fmpy deletes its temporary folder after a run), its folder
-replaces the vanished ones in the package's ``__path__``, so modules imported lazily later are
-still found.
+extraction of the same code appears (fmpy deletes its temporary folder after a run), its folders
+join the ``__path__`` of the package and of every subpackage already imported (vanished folders
+are dropped), so modules imported lazily later are still found.
 """
 
 import importlib
@@ -33,7 +33,7 @@ def load_slave_class(resources: str, package: str, module: str, name: str) -> ty
             del sys.modules[package]
             raise
     elif directory not in bundle.__path__:
-        bundle.__path__[:] = [d for d in bundle.__path__ if os.path.isdir(d)] + [directory]
+        _add_extraction(package, directory)
     try:
         slave = importlib.import_module(f"{package}.{module}")
     except ImportError as exc:
@@ -44,3 +44,14 @@ def load_slave_class(resources: str, package: str, module: str, name: str) -> ty
                               "installation or virtual environment that has them") from exc
         raise
     return getattr(slave, name)
+
+
+def _add_extraction(package: str, directory: str) -> None:
+    """Search ``directory`` (another extraction of the same code) in every imported (sub)package."""
+    for name, module in list(sys.modules.items()):
+        path = getattr(module, "__path__", None)
+        if path is None or not (name == package or name.startswith(package + ".")):
+            continue
+        folder = os.path.join(directory, *name.split(".")[1:])
+        if folder not in path:
+            path[:] = [d for d in path if os.path.isdir(d)] + [folder]

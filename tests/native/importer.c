@@ -18,6 +18,7 @@
  *                                   with IN a real input, OUT an output, MODE an Integer parameter;
  *                                   prints "call ID CALL STATUS [value]" per call
  *   bench NAME IN OUT N             times N calls each of getReal, getRealStatus and doStep
+ *   clear                           forget the declarations (a next system follows; libraries stay loaded)
  *
  * Log messages of the FMUs are printed as "log INSTANCE STATUS MESSAGE".
  */
@@ -372,6 +373,9 @@ int main(int argc, char **argv)
                   strtod(tokens[5], NULL), tokens[6]);
         } else if (!strcmp(tokens[0], "calls") && n >= 7) {
             calls(tokens[1], find(tokens[2]), atol(tokens[3]), atol(tokens[4]), atol(tokens[5]), tokens + 6, n - 6);
+        } else if (!strcmp(tokens[0], "clear") && n == 1) {
+            memset(fmus, 0, sizeof fmus);
+            count = total_outputs = 0;
         } else if (!strcmp(tokens[0], "bench") && n == 5) {
             bench(find(tokens[1]), atol(tokens[2]), atol(tokens[3]), atol(tokens[4]));
         } else {
