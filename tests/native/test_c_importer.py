@@ -6,8 +6,10 @@ with the same Jacobi rounds and the same linear input coupling (input derivative
 ``obsfmu run <scenario> --master jacobi``, and must reproduce our master to 1e-9.
 """
 
+import re
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -68,9 +70,29 @@ def test_one_c_process_runs_six_kinds_and_instantiates_again(c_host):
     assert len(kinds) == 6, kinds
 
 
+def symbols(*command):
+    return subprocess.run(list(map(str, command)), capture_output=True, text=True, check=True).stdout
+
+
 def test_the_importer_links_no_python(importer):
-    needed = subprocess.run(["readelf", "-d", str(importer)], capture_output=True, text=True, check=True).stdout
+    needed = symbols("readelf", "-d", importer)
     assert "NEEDED" in needed and "python" not in needed.lower()
+
+
+def test_the_fmu_binaries_have_no_python_symbols_to_resolve(unzipped_plant):
+    """The loader needs nothing from Python; the bridge names no libpython and exports one function."""
+    binaries = Path(unzipped_plant.directory) / "binaries" / "linux64"
+    loader, (bridge,) = binaries / "ship_plant.so", list(binaries.glob("obsfmu_bridge_*.so"))
+    undefined = symbols("nm", "-D", "--undefined-only", loader)
+    assert "dlopen" in undefined and not re.search(r"\b_?Py", undefined), undefined
+    assert "python" not in symbols("readelf", "-d", loader).lower()
+    assert "python" not in symbols("readelf", "-d", bridge).lower()
+    assert re.search(r"\bU Py_InitializeFromConfig\b", symbols("nm", "-D", "--undefined-only", bridge))
+    def exported(library):
+        return {line.split()[-1] for line in symbols("nm", "-D", "--defined-only", library).splitlines()}
+    assert exported(bridge) == {"obsfmu_bridge"}  # no fmi2* names to interpose
+    assert {name for name in exported(loader) if name.startswith("fmi2")} >= {"fmi2Instantiate", "fmi2DoStep"}
+    assert all(name.startswith("fmi2") for name in exported(loader)), exported(loader)
 
 
 @pytest.fixture(scope="module")
