@@ -149,3 +149,19 @@ def test_the_override_points_at_another_python(importer, unzipped_plant, tmp_pat
     assert completed.returncode == 0, completed.stdout + completed.stderr
     statuses = [line.split()[3] for line in completed.stdout.splitlines() if line.startswith("call ")]
     assert statuses == ["0"] * 5, completed.stdout
+
+
+def test_a_python_host_of_another_version_is_told_so(build_dir, tmp_path, capfd):
+    """The bridge is compiled for one Python version; a host running another gets NULL and the reason."""
+    from fmpy.fmi2 import FMU2Slave
+
+    plant = Unzipped.of("plant", ensure_fmus(get("ship"), build_dir)["ship_plant"], tmp_path)
+    record = Path(plant.directory) / "resources" / "obsfmu_native.txt"
+    version = f"{sys.version_info.major}.{sys.version_info.minor}"
+    record.write_text(record.read_text().replace(f"python_version={version}", "python_version=3.99"))
+    slave = FMU2Slave(guid=plant.description.guid, unzipDirectory=plant.directory, modelIdentifier="ship_plant",
+                      instanceName="plant")
+    with pytest.raises(Exception, match="Failed to instantiate"):
+        slave.instantiate()
+    message = capfd.readouterr().out
+    assert f"this process runs Python {version}" in message and "built for Python 3.99" in message, message
