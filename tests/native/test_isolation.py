@@ -8,6 +8,7 @@ import json
 import shutil
 import subprocess
 import sys
+import sysconfig
 import textwrap
 
 import pytest
@@ -24,8 +25,9 @@ Waveform.__call__ = lambda self, t: _variant_call(self, t) + 1000.0  # the code 
 """
 
 
-def python(script: str, *args: str, isolated: bool = False) -> dict:
-    command = [sys.executable] + (["-I"] if isolated else []) + ["-c", textwrap.dedent(script), *args]
+def python(script: str, *args: str, flags: tuple[str, ...] = ()) -> dict:
+    """Run ``script`` in a fresh interpreter; it prints one JSON line."""
+    command = [sys.executable, *flags, "-c", textwrap.dedent(script), *args]
     completed = subprocess.run(command, capture_output=True, text=True, timeout=300)
     assert completed.returncode == 0, completed.stdout[-3000:] + completed.stderr[-3000:]
     return json.loads(completed.stdout.splitlines()[-1])
@@ -105,5 +107,27 @@ def test_observers_of_two_kinds_one_after_the_other(build_dir):
             outputs.append(len(result))
         plain = sorted(m for m in sys.modules if m.split(".")[0] in ("fmus", "observers", "plants", "pythonfmu"))
         print(json.dumps({"outputs": outputs, "path_unchanged": sys.path == path_before, "plain": plain}))
-    """, *map(str, paths), isolated=True)
+    """, *map(str, paths), flags=("-I",))
     assert result["outputs"] == [3, 3] and result["path_unchanged"] and result["plain"] == []
+
+
+def test_user_modules_are_bundled_relocated_too(tmp_path):
+    """A user's ``"module:function"`` module, importing a project module, runs from the FMU alone."""
+    from fmus.kinds.gpebo import generator_plant_definition
+
+    user = tmp_path / "usermodel.py"
+    user.write_text("from plants.paper000 import sine\n\n\ndef doubled(y):\n    return 2.0 * sine(y)\n")
+    plain = build_fmu(generator_plant_definition("plain_plant"), tmp_path / "fmus")
+    doubled = build_fmu(generator_plant_definition("user_plant", f="usermodel:doubled"), tmp_path / "fmus",
+                        extra_modules=[user])
+    result = python("""
+        import json, sys
+        sys.path.append(sys.argv[1])  # packages only: no .pth files, so no editable obsfmu
+        from fmpy import simulate_fmu
+        final = [simulate_fmu(path, stop_time=5.0, step_size=1.0, output_interval=1.0)["x[1]"][-1]
+                 for path in sys.argv[2:]]
+        modules = sorted(m for m in sys.modules if m.endswith("usermodel") or m.split(".")[0] in ("plants", "fmus"))
+        print(json.dumps({"final": final, "modules": modules}))
+    """, sysconfig.get_paths()["purelib"], str(plain), str(doubled), flags=("-I", "-S"))
+    assert result["final"][0] != result["final"][1]  # the user's function is the one used
+    assert [m.split(".", 1)[1] for m in result["modules"]] == ["usermodel"], result["modules"]
