@@ -165,7 +165,9 @@ def build_fmu(definition: FmuDefinition, out_dir: Path | str, extra_modules=()) 
             f"resources/{package}/_slave_{model}.py": SLAVE_TEMPLATE.format(model=model, json=f"{model}.json").encode(),
             **{f"resources/{name}": data for name, data in bundled.items()},
         }
-    partial = out_dir / f".{model}.fmu.partial"
+    handle, name = tempfile.mkstemp(prefix=f".{model}.", suffix=".fmu.partial", dir=out_dir)
+    os.close(handle)
+    partial = Path(name)  # unique: concurrent builds of the same FMU never write one file
     try:
         with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as archive:
             for name, data in files.items():

@@ -71,7 +71,7 @@ class InputMode(IntEnum):
     INTERPOLATE = 2
 
 
-#: what the native binary (fmus/native/obsfmu_fmi2.c) and this class really support
+#: what the native binary (fmus/native) and this class really support
 CAPABILITIES = {
     "needsExecutionTool": "true",  # a Python interpreter with numpy and scipy
     "canHandleVariableCommunicationStepSize": "true",

@@ -15,3 +15,14 @@ def build_dir(tmp_path_factory):
 def ship_fmus(build_dir):
     from fmus.scenarios import ensure_fmus, get
     return ensure_fmus(get("ship"), build_dir)
+
+
+@pytest.fixture(scope="session")
+def every_fmu(build_dir):
+    """model -> (scenario step, fmu path) for every distinct FMU used by a scenario."""
+    from fmus.scenarios import SCENARIOS, ensure_fmus
+    found = {}
+    for scenario in SCENARIOS.values():
+        for model, path in ensure_fmus(scenario, build_dir).items():
+            found.setdefault(model, (scenario.step, path))
+    return found

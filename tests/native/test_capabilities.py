@@ -15,22 +15,10 @@ from fmpy import extract, read_model_description
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import FMU2Slave
 
-from fmus.scenarios import SCENARIOS, ensure_fmus
-
 CHECKED = {"modelIdentifier", "needsExecutionTool", "canHandleVariableCommunicationStepSize", "canInterpolateInputs",
            "maxOutputDerivativeOrder", "canRunAsynchronuously", "canBeInstantiatedOnlyOncePerProcess",
            "canNotUseMemoryManagementFunctions", "canGetAndSetFMUstate", "canSerializeFMUstate",
            "providesDirectionalDerivative"}
-
-
-@pytest.fixture(scope="module")
-def every_fmu(build_dir):
-    """model -> (scenario step, path) for every distinct FMU of every scenario."""
-    found = {}
-    for scenario in SCENARIOS.values():
-        for model, path in ensure_fmus(scenario, build_dir).items():
-            found.setdefault(model, (scenario.step, path))
-    return found
 
 
 class Running:
