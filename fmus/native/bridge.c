@@ -392,50 +392,24 @@ static fmi2Status set_values(Component *c, const char *method, const fmi2ValueRe
     return call(c, method, Py_BuildValue("(NN)", reference_list(vr, nvr), values), NULL);
 }
 
-static fmi2Status set_real(fmi2Component component, const fmi2ValueReference vr[], size_t nvr,
-                           const fmi2Real value[])
-{
-    COMPONENT
-    WITH_GIL({
-        PyObject *values = PyList_New((Py_ssize_t)nvr);
-        for (size_t i = 0; values && i < nvr; i++) PyList_SET_ITEM(values, (Py_ssize_t)i, PyFloat_FromDouble(value[i]));
-        status_ = set_values(c, "set_real", vr, nvr, values);
-    })
-}
+static PyObject *string_object(fmi2String text) { return PyUnicode_FromString(text ? text : ""); }
 
-static fmi2Status set_integer(fmi2Component component, const fmi2ValueReference vr[], size_t nvr,
-                              const fmi2Integer value[])
-{
-    COMPONENT
-    WITH_GIL({
-        PyObject *values = PyList_New((Py_ssize_t)nvr);
-        for (size_t i = 0; values && i < nvr; i++) PyList_SET_ITEM(values, (Py_ssize_t)i, PyLong_FromLong(value[i]));
-        status_ = set_values(c, "set_integer", vr, nvr, values);
-    })
-}
+#define SETTER(function, method, type, to_python)                                                      \
+    static fmi2Status function(fmi2Component component, const fmi2ValueReference vr[], size_t nvr,     \
+                               const type value[])                                                     \
+    {                                                                                                  \
+        COMPONENT                                                                                      \
+        WITH_GIL({                                                                                     \
+            PyObject *values = PyList_New((Py_ssize_t)nvr);                                            \
+            for (size_t i = 0; values && i < nvr; i++) PyList_SET_ITEM(values, (Py_ssize_t)i, to_python(value[i])); \
+            status_ = set_values(c, method, vr, nvr, values);                                          \
+        })                                                                                             \
+    }
 
-static fmi2Status set_boolean(fmi2Component component, const fmi2ValueReference vr[], size_t nvr,
-                              const fmi2Boolean value[])
-{
-    COMPONENT
-    WITH_GIL({
-        PyObject *values = PyList_New((Py_ssize_t)nvr);
-        for (size_t i = 0; values && i < nvr; i++) PyList_SET_ITEM(values, (Py_ssize_t)i, PyBool_FromLong(value[i]));
-        status_ = set_values(c, "set_boolean", vr, nvr, values);
-    })
-}
-
-static fmi2Status set_string(fmi2Component component, const fmi2ValueReference vr[], size_t nvr,
-                             const fmi2String value[])
-{
-    COMPONENT
-    WITH_GIL({
-        PyObject *values = PyList_New((Py_ssize_t)nvr);
-        for (size_t i = 0; values && i < nvr; i++)
-            PyList_SET_ITEM(values, (Py_ssize_t)i, PyUnicode_FromString(value[i] ? value[i] : ""));
-        status_ = set_values(c, "set_string", vr, nvr, values);
-    })
-}
+SETTER(set_real, "set_real", fmi2Real, PyFloat_FromDouble)
+SETTER(set_integer, "set_integer", fmi2Integer, PyLong_FromLong)
+SETTER(set_boolean, "set_boolean", fmi2Boolean, PyBool_FromLong)
+SETTER(set_string, "set_string", fmi2String, string_object)
 
 /* ---- FMU state (the loader wraps these with its own state machine fields) */
 
