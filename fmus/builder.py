@@ -3,9 +3,10 @@
 An FMU built here contains (layout and reasons: ``docs/portability.md``):
 
 * ``modelDescription.xml`` -- written by the generic slave (:mod:`fmus.slave`, a pythonfmu
-  ``Fmi2Slave``) from the definition;
-* ``binaries/<platform>/<model>.so`` -- the loader, and the bridge for the building Python
-  version (:mod:`fmus.native`);
+  ``Fmi2Slave``) from the definition; for FMI 3.0 (``fmi_version=3``) :mod:`fmus.fmi3` turns it
+  into the FMI 3.0 description with array variables (and ``resources/obsfmu_fmi3.txt``);
+* ``binaries/<platform>/<model>.so`` -- the loader of the FMI version, and the bridge for the
+  building Python version (:mod:`fmus.native`; FMI 3.0: ``binaries/<platform tuple>/``);
 * ``resources/`` -- the definition JSON, ``build_info.json`` (hash of everything the FMU is made
   of, for :func:`is_current`), ``obsfmu_native.txt`` (GUID, the Python to use, where the slave
   is) and the bundled code relocated under ``_obsfmu_<hash>/`` (:mod:`fmus.bundle`): the project
@@ -27,7 +28,7 @@ from pathlib import Path
 from xml.dom.minidom import parseString
 from xml.etree.ElementTree import tostring
 
-from . import native
+from . import fmi3, native
 from .bundle import package_init, relocate
 from .definition import FmuDefinition, valid_identifier
 
@@ -98,9 +99,11 @@ def _bundle(extra_modules=()) -> tuple[str, dict[str, bytes]]:
     return _relocated(_code_hash(sources), sources)
 
 
-def source_hash(definition: FmuDefinition, extra_modules=()) -> str:
+def source_hash(definition: FmuDefinition, extra_modules=(), fmi_version: int = 2) -> str:
     """Hash of the definition, of the bundled code and of the native binaries (with their Python)."""
     digest = hashlib.sha256(definition.kind.encode())
+    if fmi3.check_version(fmi_version) == 3:
+        digest.update(b"FMI 3.0")
     for key, value in sorted(vars(definition).items()):
         if key != "kind_module":  # filled in while building
             digest.update(f"{key}={value!r}".encode())
@@ -125,14 +128,16 @@ def _record(**values: str) -> str:
             + "".join(f"{key}={value}\n" for key, value in values.items()))
 
 
-def build_fmu(definition: FmuDefinition, out_dir: Path | str, extra_modules=()) -> Path:
+def build_fmu(definition: FmuDefinition, out_dir: Path | str, extra_modules=(), fmi_version: int = 2) -> Path:
     """Build ``<out_dir>/<model_name>.fmu`` and return its path.
 
     ``extra_modules`` are the user's ``.py`` files or package directories that
     the definition's ``"module:function"`` references need (see
     :mod:`fmus.callables`); they are bundled next to the project packages.
+    ``fmi_version`` 3 builds an FMI 3.0 FMU of the same definition (:mod:`fmus.fmi3`).
     The FMU file appears only once it is complete.
     """
+    fmi_version = fmi3.check_version(fmi_version)
     if not valid_identifier(definition.model_name):
         raise ValueError(f"model_name: {definition.model_name!r} is not a valid identifier "
                          "(letters, digits, underscore; not starting with a digit)")
@@ -140,7 +145,7 @@ def build_fmu(definition: FmuDefinition, out_dir: Path | str, extra_modules=()) 
         from .kinds import module_of
         definition.kind_module = module_of(definition.kind)
     model = definition.model_name
-    loader, bridge = native.loader_library(), native.bridge_library()  # fail early: nothing half-built
+    loader, bridge = native.loader_library(fmi_version), native.bridge_library()  # fail early: nothing half-built
     package, bundled = _bundle(extra_modules)
     python = native.python_record()
     if not python["python_library"]:
@@ -149,21 +154,28 @@ def build_fmu(definition: FmuDefinition, out_dir: Path | str, extra_modules=()) 
                       RuntimeWarning, stacklevel=2)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    binaries = f"binaries/{native.platform_folder()}"
+    binaries = f"binaries/{native.platform_folder() if fmi_version == 2 else fmi3.platform_tuple()}"
     with tempfile.TemporaryDirectory(prefix="obsfmu_build_") as temp:
         resources = Path(temp)
         (resources / f"{model}.json").write_text(definition.to_json())
         description, guid = _model_description(definition, resources)
+        extra = {}
+        if fmi_version == 3:
+            from .fmi3.description import describe
+            description, table = describe(definition, description)
+            extra[f"resources/{fmi3.TABLE}"] = table.encode()
         record = _record(guid=guid, package=package, slave_module=f"_slave_{model}", slave_class=model,
                          bridge=f"{binaries}/{native.bridge_name()}", **python)
         files = {
             "modelDescription.xml": description,
             f"resources/{model}.json": definition.to_json().encode(),
-            "resources/build_info.json": json.dumps({"source_hash": source_hash(definition, extra_modules)}).encode(),
+            "resources/build_info.json": json.dumps({"source_hash": source_hash(definition, extra_modules,
+                                                                                fmi_version)}).encode(),
             "resources/obsfmu_native.txt": record.encode(),
             "resources/obsfmu_bootstrap.py": native.BOOTSTRAP.read_bytes(),
             f"resources/{package}/_slave_{model}.py": SLAVE_TEMPLATE.format(model=model, json=f"{model}.json").encode(),
             **{f"resources/{name}": data for name, data in bundled.items()},
+            **extra,
         }
     handle, name = tempfile.mkstemp(prefix=f".{model}.", suffix=".fmu.partial", dir=out_dir)
     os.close(handle)
@@ -181,11 +193,11 @@ def build_fmu(definition: FmuDefinition, out_dir: Path | str, extra_modules=()) 
     return target
 
 
-def is_current(fmu: Path, definition: FmuDefinition, extra_modules=()) -> bool:
-    """True when ``fmu`` exists and was built from this definition, code, binaries and Python."""
+def is_current(fmu: Path, definition: FmuDefinition, extra_modules=(), fmi_version: int = 2) -> bool:
+    """True when ``fmu`` exists and was built from this definition, code, binaries, Python and FMI version."""
     try:
         with zipfile.ZipFile(fmu) as archive:
             info = json.loads(archive.read("resources/build_info.json"))
     except (FileNotFoundError, KeyError, zipfile.BadZipFile, json.JSONDecodeError):
         return False
-    return info.get("source_hash") == source_hash(definition, extra_modules)
+    return info.get("source_hash") == source_hash(definition, extra_modules, fmi_version)

@@ -30,7 +30,11 @@ __all__ = ["NativeBuildError", "platform_folder", "fmi_headers", "loader_library
            "python_record", "identity", "BOOTSTRAP", "OVERRIDE"]
 
 HERE = Path(__file__).parent
-LOADER, BRIDGE, HEADER = HERE / "loader.c", HERE / "bridge.c", HERE / "obsfmu_native.h"
+LOADER, BRIDGE = HERE / "loader.c", HERE / "bridge.c"
+#: the FMI 3.0 loader (same bridge, same Python rules; docs/fmi3.md)
+LOADER_FMI3 = HERE / "loader_fmi3.c"
+#: what the sources include (obsfmu_native.h, loader_common.h): part of every cache key
+HEADERS = tuple(sorted(HERE.glob("*.h")))
 #: run by the bridge at each instantiation to import the FMU's own code (copied into resources/)
 BOOTSTRAP = HERE / "bootstrap.py"
 #: environment variable pointing an FMU at another Python installation (read by the loader)
@@ -55,11 +59,11 @@ def _suffix() -> str:
 
 
 def fmi_headers() -> Path:
-    """The FMI 2.0 C headers (shipped with fmpy)."""
+    """The FMI 2.0 and 3.0 C headers (shipped with fmpy)."""
     import fmpy
     headers = Path(fmpy.__file__).parent / "c-code"
-    if not (headers / "fmi2Functions.h").is_file():
-        raise NativeBuildError(f"FMI 2 headers not found in {headers} (fmpy installation incomplete)")
+    if not all((headers / name).is_file() for name in ("fmi2Functions.h", "fmi3Functions.h")):
+        raise NativeBuildError(f"FMI 2/3 headers not found in {headers} (fmpy installation incomplete)")
     return headers
 
 
@@ -77,7 +81,7 @@ def _cache_dir() -> Path:
 
 def _compiled(stem: str, source: Path, flags: list[str], key_material: str) -> Path:
     """``source`` compiled with ``flags`` into the cache (once per key), atomically."""
-    key = hashlib.sha256(source.read_bytes() + HEADER.read_bytes() + " ".join(flags).encode()
+    key = hashlib.sha256(source.read_bytes() + b"".join(h.read_bytes() for h in HEADERS) + " ".join(flags).encode()
                          + key_material.encode()).hexdigest()[:16]
     target = _cache_dir() / f"{stem}-{key}{_suffix()}"
     if target.is_file():
@@ -95,10 +99,15 @@ def _compiled(stem: str, source: Path, flags: list[str], key_material: str) -> P
     return target
 
 
-def loader_library() -> Path:
-    """The loader for this platform (no Python in it: one binary serves every Python version)."""
+def loader_library(fmi_version: int = 2) -> Path:
+    """The loader of FMI ``fmi_version`` (2 or 3) for this platform (no Python in it: one binary
+    serves every Python version)."""
+    if fmi_version not in (2, 3):
+        raise NativeBuildError(f"fmi_version: {fmi_version!r} is not 2 or 3")
     # snprintf may truncate over-long paths on purpose (they then do not exist): no warning for that
     flags = ["-pthread", "-ldl", "-Wno-format-truncation"] + ([] if sys.platform == "darwin" else ["-Wl,-Bsymbolic"])
+    if fmi_version == 3:
+        return _compiled("obsfmu_loader_fmi3", LOADER_FMI3, flags, platform_folder())
     return _compiled("obsfmu_loader", LOADER, flags, platform_folder())
 
 
@@ -144,5 +153,5 @@ def python_record() -> dict[str, str]:
 
 def identity() -> str:
     """Everything about the binaries an FMU depends on: their sources and the recorded Python."""
-    sources = b"".join(path.read_bytes() for path in (LOADER, BRIDGE, HEADER, BOOTSTRAP))
+    sources = b"".join(path.read_bytes() for path in (LOADER, LOADER_FMI3, BRIDGE, *HEADERS, BOOTSTRAP))
     return hashlib.sha256(sources).hexdigest() + repr(sorted(python_record().items())) + sys.version

@@ -1,0 +1,427 @@
+/*
+ * What the FMI 2.0 loader (loader.c) and the FMI 3.0 loader (loader_fmi3.c) share: everything that
+ * does not depend on the FMI version (details: docs/portability.md, docs/fmi3.md).
+ *
+ *   - finding or starting Python and loading the BRIDGE, once per process (get_bridge);
+ *   - the CORE of an instance: the bridge's component, the state machine's state and time, where
+ *     messages go (an fmi2CallbackFunctions: the FMI 3 loader points it at a trampoline), and the
+ *     rule that a failed call moves the instance to the version's failure state;
+ *   - FMU states: the slave's state plus the state machine's (state, time), and their serialized
+ *     form (header: magic of the FMI version, state, time, CRC-32 of all of it and the slave's bytes).
+ *
+ * Each loader includes this file once; everything here is static (nothing is exported).
+ * The bridge is the same for both FMI versions: it speaks the FMI 2.0 signatures with the slave's
+ * scalar value references (obsfmu_native.h).
+ */
+#ifndef OBSFMU_LOADER_COMMON_H
+#define OBSFMU_LOADER_COMMON_H
+
+#include <dlfcn.h>
+#include <pthread.h>
+#include <stdarg.h>
+#include <stdint.h>
+#include <sys/stat.h>
+
+#include "obsfmu_native.h"
+
+#define OVERRIDE "OBSFMU_PYTHON"
+#define PATH_SIZE 4096
+
+static double magnitude(double x) { return x < 0 ? -x : x; }
+static int finite(double x) { return x == x && magnitude(x) <= 1.7976931348623157e308; }
+
+/* ------------------------------------------------------------------ finding Python */
+
+static pthread_mutex_t lock = PTHREAD_MUTEX_INITIALIZER;
+static void *bridge_library;          /* this loader's bridge (closed when the loader is unloaded) */
+static const ObsfmuBridge *bridge;
+static char start_failure[PATH_SIZE]; /* an interpreter that failed to start cannot be retried */
+
+static int exists(const char *path)
+{
+    struct stat info;
+    return path[0] != '\0' && stat(path, &info) == 0;
+}
+
+/* "3.11.7 (main, ...)" has the version "3.11" (and "3.1" does not). */
+static int same_version(const char *running, const char *wanted)
+{
+    size_t n = strlen(wanted);
+    return running && strncmp(running, wanted, n) == 0 && (running[n] == '.' || running[n] == ' ' || running[n] == '\0');
+}
+
+/* dirname, in place */
+static void parent(char *path)
+{
+    char *slash = strrchr(path, '/');
+    if (slash && slash != path) *slash = '\0';
+    else if (slash) slash[1] = '\0';
+}
+
+/* Append `path` to the list of places looked at; return it if it exists. */
+static int candidate(const char *path, char *tried, size_t size)
+{
+    size_t used = strlen(tried);
+    snprintf(tried + used, size - used, "%s%s", used ? ", " : "", path);
+    return exists(path);
+}
+
+/* <root>/pyvenv.cfg (a virtual environment) says "home = <base>/bin"; otherwise base = root. */
+static void base_installation(const char *root, char *base, size_t size)
+{
+    char path[PATH_SIZE], line[PATH_SIZE];
+    snprintf(base, size, "%s", root);
+    snprintf(path, sizeof path, "%s/pyvenv.cfg", root);
+    FILE *file = fopen(path, "r");
+    if (file == NULL) return;
+    while (fgets(line, sizeof line, file)) {
+        char *value = strchr(line, '=');
+        if (strncmp(line, "home", 4) != 0 || strchr(" \t=", line[4]) == NULL || value == NULL) continue;
+        value += 1 + strspn(value + 1, " \t");
+        value[strcspn(value, "\r\n")] = '\0';
+        snprintf(base, size, "%s", value);
+        parent(base);
+    }
+    fclose(file);
+}
+
+/* The python executable and libpython of $OBSFMU_PYTHON: a prefix, a venv or a python executable. */
+static int python_from_override(const char *value, const char *record, char *program, char *library,
+                                char *tried, size_t size)
+{
+    char version[32], multiarch[128], root[PATH_SIZE], base[PATH_SIZE], path[2 * PATH_SIZE + 64];
+    obsfmu_record_value(record, "python_version", version, sizeof version);
+    obsfmu_record_value(record, "python_multiarch", multiarch, sizeof multiarch);
+    struct stat info;
+    program[0] = library[0] = '\0';
+    snprintf(root, sizeof root, "%s", value);
+    if (stat(value, &info) == 0 && !S_ISDIR(info.st_mode)) { /* <root>/bin/python */
+        snprintf(program, PATH_SIZE, "%s", value);
+        parent(root);
+        parent(root);
+    } else {
+        const char *names[] = {version, "3", ""};
+        for (int i = 0; i < 3 && !program[0]; i++) {
+            snprintf(path, sizeof path, "%s/bin/python%s", root, names[i]);
+            if (candidate(path, tried, size)) snprintf(program, PATH_SIZE, "%s", path);
+        }
+    }
+    base_installation(root, base, sizeof base);
+    char folders[3][160] = {"lib", "lib64", ""};
+    if (multiarch[0]) snprintf(folders[2], sizeof folders[2], "lib/%s", multiarch);
+    const char *suffixes[] = {".so.1.0", ".so.1", ".so"};
+    for (int f = 0; f < 3 && !library[0]; f++) {
+        for (int s = 0; folders[f][0] && s < 3 && !library[0]; s++) {
+            snprintf(path, sizeof path, "%s/%s/libpython%s%s", base, folders[f], version, suffixes[s]);
+            if (candidate(path, tried, size)) snprintf(library, PATH_SIZE, "%s", path);
+        }
+    }
+    return program[0] && library[0];
+}
+
+/* Load libpython (RTLD_GLOBAL: extension modules resolve their symbols there); 1 if it must be started. */
+static void *load_python(const char *record, char *program, int *must_start, char *message, size_t size)
+{
+    char version[32], library[PATH_SIZE], tried[PATH_SIZE] = "";
+    obsfmu_record_value(record, "python_version", version, sizeof version);
+    const char *override = getenv(OVERRIDE);
+    const char *fix = "set " OVERRIDE " to a Python %s installation prefix, virtual environment or python "
+                      "executable that has numpy and scipy (e.g. " OVERRIDE "=/path/to/venv)";
+    char hint[512];
+    snprintf(hint, sizeof hint, fix, version);
+    if (override && override[0]) {
+        if (!python_from_override(override, record, program, library, tried, sizeof tried)) {
+            snprintf(message, size, "no usable Python %s for this FMU: no Python runs in this process, and "
+                     OVERRIDE "=%s has no python executable and libpython%s (looked for %s); %s", version,
+                     override, version, tried, hint);
+            return NULL;
+        }
+    } else {
+        obsfmu_record_value(record, "python_executable", program, PATH_SIZE);
+        obsfmu_record_value(record, "python_library", library, sizeof library);
+        if (!exists(program) || !exists(library)) {
+            snprintf(message, size, "no usable Python %s for this FMU: no Python runs in this process, "
+                     OVERRIDE " is not set, and the Python recorded when the FMU was built is not here "
+                     "(python executable %s: %s; shared library libpython %s: %s); %s", version,
+                     program[0] ? program : "(none)", exists(program) ? "found" : "missing",
+                     library[0] ? library : "(none: that Python has no shared libpython)",
+                     exists(library) ? "found" : "missing", hint);
+            return NULL;
+        }
+    }
+    void *python = dlopen(library, RTLD_NOW | RTLD_GLOBAL);
+    if (python == NULL) {
+        snprintf(message, size, "cannot load %s: %s; %s", library, dlerror(), hint);
+        return NULL;
+    }
+    const char *(*get_version)(void) = (const char *(*)(void))dlsym(python, "Py_GetVersion");
+    int (*initialized)(void) = (int (*)(void))dlsym(python, "Py_IsInitialized");
+    if (get_version == NULL || initialized == NULL || !same_version(get_version(), version)) {
+        snprintf(message, size, "%s is not Python %s (it is %.20s); %s", library, version,
+                 get_version ? get_version() : "not a libpython", hint);
+        return NULL; /* never dlclose a libpython: it may have run already */
+    }
+    *must_start = !initialized();
+    return python;
+}
+
+/* The bridge of this FMU, with a Python to run it; NULL and a message saying what is missing. */
+static const ObsfmuBridge *get_bridge(const char *resources, const char *record, char *message, size_t size)
+{
+    pthread_mutex_lock(&lock);
+    if (bridge == NULL && start_failure[0]) snprintf(message, size, "%s", start_failure);
+    if (bridge != NULL || start_failure[0]) goto done;
+
+    char version[32], program[PATH_SIZE] = "", name[PATH_SIZE], path[2 * PATH_SIZE];
+    obsfmu_record_value(record, "python_version", version, sizeof version);
+    obsfmu_record_value(record, "bridge", name, sizeof name);
+    int must_start = 0;
+    int (*initialized)(void) = (int (*)(void))dlsym(RTLD_DEFAULT, "Py_IsInitialized");
+    if (initialized != NULL) { /* the process has Python: use it */
+        const char *(*get_version)(void) = (const char *(*)(void))dlsym(RTLD_DEFAULT, "Py_GetVersion");
+        const char *running = get_version ? get_version() : "";
+        if (!same_version(running, version)) {
+            snprintf(message, size, "this process runs Python %.20s, but this FMU's binary was built for Python %s: "
+                     "load it from a Python %s process, or rebuild it (obsfmu build) with the host's Python",
+                     running, version, version);
+            goto done;
+        }
+        must_start = !initialized();
+        obsfmu_record_value(record, "python_executable", program, sizeof program);
+    } else if (load_python(record, program, &must_start, message, size) == NULL) {
+        goto done;
+    }
+
+    snprintf(path, sizeof path, "%s/../%s", resources, name);
+    void *library = dlopen(path, RTLD_NOW | RTLD_LOCAL);
+    ObsfmuBridgeFunction *table = library ? (ObsfmuBridgeFunction *)dlsym(library, OBSFMU_BRIDGE_SYMBOL) : NULL;
+    if (table == NULL || table()->abi != OBSFMU_BRIDGE_ABI) {
+        snprintf(message, size, "cannot load the FMU's bridge %s: %s", path,
+                 library ? "not an obsfmu bridge of this version" : dlerror());
+        if (library) dlclose(library);
+        goto done;
+    }
+    if (must_start && table()->start(program, message, size) != 0) {
+        snprintf(start_failure, sizeof start_failure, "%s", message);
+        goto done; /* the bridge stays loaded: the half-started interpreter may point into it */
+    }
+    bridge_library = library;
+    bridge = table();
+done:
+    pthread_mutex_unlock(&lock);
+    return bridge;
+}
+
+__attribute__((destructor)) static void unload(void)
+{
+    if (bridge_library) dlclose(bridge_library);
+}
+
+/* ------------------------------------------------------------------ the core of an instance */
+
+/* What differs between the FMI versions in the parts below. */
+typedef struct {
+    char magic[8];               /* first bytes of a serialized FMU state */
+    unsigned every_state;        /* mask of the state machine's states */
+    unsigned failed;             /* the state a failed call (fmi2Error/fmi3Error) leads to */
+    const char *(*state_name)(unsigned state);
+    const char *prefix;          /* "fmi2" or "fmi3", for messages */
+} Version;
+
+typedef struct {
+    const Version *version;
+    const ObsfmuBridge *bridge;
+    fmi2Component inner;          /* the bridge's component */
+    unsigned state;               /* one bit of version->every_state */
+    double time;                  /* the FMU's current communication point */
+    fmi2CallbackFunctions callbacks;
+    char *name;
+} Core;
+
+/* An FMU state: the slave's plus the state machine's. */
+typedef struct {
+    fmi2FMUstate inner;
+    unsigned state;
+    double time;
+} Snapshot;
+
+static void say(const fmi2CallbackFunctions *callbacks, const char *name, fmi2Status status, const char *format, ...)
+{
+    char message[8192];
+    va_list arguments;
+    va_start(arguments, format);
+    vsnprintf(message, sizeof message, format, arguments);
+    va_end(arguments);
+    obsfmu_emit(callbacks, name, status, obsfmu_category(status), message);
+}
+
+#define refuse(core, ...) (say(&(core)->callbacks, (core)->name, fmi2Error, __VA_ARGS__), fmi2Error)
+
+/* A slave failure leaves the instance in the version's failure state. */
+static fmi2Status after(Core *c, fmi2Status status)
+{
+    if (status < fmi2Error) return status;
+    c->state = c->version->failed;
+    return fmi2Error;
+}
+
+/* ------------------------------------------------------------------ FMU states */
+
+static fmi2Status core_get_state(Core *c, const char *call, void **state)
+{
+    if (state == NULL) return refuse(c, "%s: FMUState is NULL", call);
+    Snapshot *snapshot = *state ? (Snapshot *)*state : calloc(1, sizeof(Snapshot));
+    if (snapshot == NULL) return refuse(c, "%s: out of memory", call);
+    fmi2Status status = c->bridge->getFMUstate(c->inner, &snapshot->inner);
+    if (status < fmi2Error) {
+        snapshot->state = c->state;
+        snapshot->time = c->time;
+        *state = snapshot;
+    } else if (*state == NULL) {
+        free(snapshot);
+    }
+    return after(c, status);
+}
+
+static fmi2Status core_set_state(Core *c, const char *call, void *state)
+{
+    Snapshot *snapshot = (Snapshot *)state;
+    if (snapshot == NULL) return refuse(c, "%s: FMUState is NULL", call);
+    fmi2Status status = c->bridge->setFMUstate(c->inner, snapshot->inner);
+    if (status < fmi2Error) {
+        c->state = snapshot->state;
+        c->time = snapshot->time;
+    }
+    return after(c, status);
+}
+
+static fmi2Status core_free_state(Core *c, void **state)
+{
+    if (state == NULL || *state == NULL) return fmi2OK;
+    Snapshot *snapshot = (Snapshot *)*state;
+    fmi2Status status = c->bridge->freeFMUstate(c->inner, &snapshot->inner);
+    free(snapshot);
+    *state = NULL;
+    return after(c, status);
+}
+
+/* Serialized: a header (magic, state, CRC-32 of state, time and the slave's bytes, time), then the slave's bytes. */
+typedef struct {
+    char magic[8];
+    uint32_t state;
+    uint32_t crc;
+    double time;
+} Header;
+
+static uint32_t crc32(uint32_t crc, const void *data, size_t size)
+{
+    const unsigned char *bytes = data;
+    crc = ~crc;
+    for (size_t i = 0; i < size; i++) {
+        crc ^= bytes[i];
+        for (int k = 0; k < 8; k++) crc = (crc >> 1) ^ (0xEDB88320u & (0u - (crc & 1u)));
+    }
+    return ~crc;
+}
+
+static uint32_t checksum(const Header *header, const fmi2Byte *payload, size_t size)
+{
+    uint32_t crc = crc32(0, &header->state, sizeof header->state);
+    crc = crc32(crc, &header->time, sizeof header->time);
+    return crc32(crc, payload, size);
+}
+
+static fmi2Status core_serialized_size(Core *c, const char *call, void *state, size_t *size)
+{
+    if (state == NULL || size == NULL) return refuse(c, "%s: NULL argument", call);
+    fmi2Status status = c->bridge->serializedFMUstateSize(c->inner, ((Snapshot *)state)->inner, size);
+    if (status < fmi2Error) *size += sizeof(Header);
+    return after(c, status);
+}
+
+static fmi2Status core_serialize(Core *c, const char *call, void *state, fmi2Byte buffer[], size_t size)
+{
+    Snapshot *snapshot = (Snapshot *)state;
+    size_t payload = 0;
+    if (snapshot == NULL || buffer == NULL) return refuse(c, "%s: NULL argument", call);
+    fmi2Status status = c->bridge->serializedFMUstateSize(c->inner, snapshot->inner, &payload);
+    if (status >= fmi2Error) return after(c, status);
+    if (size < sizeof(Header) + payload)
+        return refuse(c, "%s: buffer of %zu bytes, %zu needed", call, size, sizeof(Header) + payload);
+    status = c->bridge->serializeFMUstate(c->inner, snapshot->inner, buffer + sizeof(Header), payload);
+    if (status >= fmi2Error) return after(c, status);
+    Header header;
+    memcpy(header.magic, c->version->magic, sizeof header.magic);
+    header.state = (uint32_t)snapshot->state;
+    header.time = snapshot->time;
+    header.crc = checksum(&header, buffer + sizeof(Header), payload);
+    memcpy(buffer, &header, sizeof header);
+    return status;
+}
+
+static fmi2Status core_deserialize(Core *c, const char *call, const fmi2Byte bytes[], size_t size, void **state)
+{
+    Header header;
+    if (bytes == NULL || state == NULL) return refuse(c, "%s: NULL argument", call);
+    if (size < sizeof header) return refuse(c, "%s: %zu bytes are not an FMU state", call, size);
+    memcpy(&header, bytes, sizeof header);
+    const fmi2Byte *payload = bytes + sizeof header;
+    unsigned saved = header.state;
+    if (memcmp(header.magic, c->version->magic, sizeof header.magic) != 0 || (saved & c->version->every_state) == 0
+        || (saved & (saved - 1)) != 0)
+        return refuse(c, "%s: not a serialized state of an obsfmu FMU of this version", call);
+    if (checksum(&header, payload, size - sizeof header) != header.crc)
+        return refuse(c, "%s: the serialized state is damaged (checksum mismatch)", call);
+    Snapshot *snapshot = *state ? (Snapshot *)*state : calloc(1, sizeof(Snapshot));
+    if (snapshot == NULL) return refuse(c, "%s: out of memory", call);
+    fmi2Status status = c->bridge->deSerializeFMUstate(c->inner, payload, size - sizeof header, &snapshot->inner);
+    if (status < fmi2Error) {
+        snapshot->state = saved;
+        snapshot->time = header.time;
+        *state = snapshot;
+    } else if (*state == NULL) {
+        free(snapshot);
+    }
+    return after(c, status);
+}
+
+/* ------------------------------------------------------------------ instantiation */
+
+/* The record of the FMU unzipped around `resources`, if its token (GUID, instantiationToken) is `token`;
+ * NULL after one message (through `callbacks`) saying what is wrong. */
+static char *checked_record(const fmi2CallbackFunctions *callbacks, const char *name, const char *call,
+                            const char *resources, const char *location, const char *token, const char *token_name)
+{
+    char expected[128];
+    char *record = resources ? obsfmu_read_record(resources) : NULL;
+    if (record == NULL) {
+        say(callbacks, name, fmi2Error, "%s: cannot read %s/" OBSFMU_RECORD " (resource location %s): not an unzipped "
+            "obsfmu FMU", call, resources ? resources : "", location);
+        return NULL;
+    }
+    obsfmu_record_value(record, "guid", expected, sizeof expected);
+    if (token == NULL || strcmp(token, expected) != 0) {
+        say(callbacks, name, fmi2Error, "%s: %s %s is not this FMU's (%s): the modelDescription.xml used does not "
+            "belong to this binary", call, token_name, token ? token : "(null)", expected);
+        free(record);
+        return NULL;
+    }
+    return record;
+}
+
+/* Fill the core of a new instance whose bridge component is `inner`; 0 on success. */
+static int core_init(Core *c, const Version *version, const ObsfmuBridge *bridge, fmi2Component inner,
+                     const char *name, unsigned state)
+{
+    c->version = version;
+    c->bridge = bridge;
+    c->inner = inner;
+    c->state = state;
+    c->time = 0.0;
+    c->name = malloc(strlen(name) + 1);
+    if (c->name == NULL) return -1;
+    strcpy(c->name, name);
+    return 0;
+}
+
+#endif
