@@ -32,15 +32,18 @@ def cmd_build(args) -> int:
     from .builder import build_fmu
     from .scenarios import SCENARIOS, ensure_fmus
 
-    out = Path(args.out)
+    from .fmi3 import build_folder
+
+    out, version = Path(args.out), getattr(args, "fmi_version", 2)
     if args.config:
         from .config import design_from_config, load_config
         design = design_from_config(load_config(args.config))
-        paths = [build_fmu(definition, out) for definition in design.definitions()]
+        paths = [build_fmu(definition, build_folder(out, version), fmi_version=version)
+                 for definition in design.definitions()]
     else:
         paths = []
         for scenario in SCENARIOS.values():
-            paths += [p for p in ensure_fmus(scenario, out, force=True).values() if p not in paths]
+            paths += [p for p in ensure_fmus(scenario, out, force=True, fmi_version=version).values() if p not in paths]
     return 1 if _report_built(paths) else 0
 
 
@@ -74,7 +77,7 @@ def cmd_run(args) -> int:
     overrides = scenarios.parse_overrides(args.set or [])
     result, summary = scenarios.run(args.scenario, args.build_dir, stop_time=args.stop_time, step=args.step,
                                     order=args.master, coupling=args.coupling, overrides=overrides,
-                                    progress=sys.stderr.isatty(), tolerance=args.tol)
+                                    progress=sys.stderr.isatty(), tolerance=args.tol, fmi_version=args.fmi_version)
     print(f"{scenario.name}: {len(result.time) - 1} steps to t = {result.time[-1]:g} s")
     if summary:
         print(summary)
@@ -89,7 +92,7 @@ def cmd_export(args) -> int:
 
     path = export(scenarios.get(args.scenario), args.format, args.out, args.build_dir, step=args.step,
                   stop_time=args.stop_time, overrides=scenarios.parse_overrides(args.set or []),
-                  coupling=args.coupling)
+                  coupling=args.coupling, fmi_version=args.fmi_version, system_outputs=args.system_outputs)
     print(f"wrote {path}")
     return 0
 
@@ -113,6 +116,12 @@ def cmd_all(args) -> int:
     return 0
 
 
+def _fmi_version(command: argparse.ArgumentParser) -> None:
+    command.add_argument("--fmi-version", type=int, choices=(2, 3), default=2,
+                         help="FMI version of the FMUs: 2 (default) or 3 (array variables; built into "
+                              "<build dir>/fmi3, see docs/fmi3.md)")
+
+
 def parser() -> argparse.ArgumentParser:
     main = argparse.ArgumentParser(prog="obsfmu", description="Adaptive observers as FMI 2.0 co-simulation FMUs")
     commands = main.add_subparsers(dest="command", required=True)
@@ -120,6 +129,7 @@ def parser() -> argparse.ArgumentParser:
     build = commands.add_parser("build", help="build FMUs (all scenarios, or one TOML design)")
     build.add_argument("--config", help="TOML design file of your own plant (see fmus/config.py)")
     build.add_argument("--out", default=str(DEFAULT_BUILD), help="output directory (default: build)")
+    _fmi_version(build)
     build.set_defaults(func=cmd_build)
 
     listing = commands.add_parser("list", help="list the scenarios")
@@ -142,6 +152,7 @@ def parser() -> argparse.ArgumentParser:
                      help="write only the rows nearest to multiples of this interval to the CSV")
     run.add_argument("--plot", help="write a PNG figure")
     run.add_argument("--build-dir", default=str(DEFAULT_BUILD), help="where the FMUs are (built if missing)")
+    _fmi_version(run)
     run.set_defaults(func=cmd_run)
 
     exporting = commands.add_parser("export", help="write a scenario as an SSP package or OSP system structure")
@@ -154,6 +165,10 @@ def parser() -> argparse.ArgumentParser:
                            help="linear: connected inputs extrapolate inside the FMUs (default: the scenario's)")
     exporting.add_argument("--set", action="append", metavar="INSTANCE.VAR=VALUE")
     exporting.add_argument("--build-dir", default=str(DEFAULT_BUILD))
+    exporting.add_argument("--no-system-outputs", dest="system_outputs", action="store_false",
+                           help="ssp: no connections to the system's output connectors (libcosim and ECOS reject "
+                                "them; FMU Manipulation Toolbox needs them to expose outputs)")
+    _fmi_version(exporting)
     exporting.set_defaults(func=cmd_export)
 
     everything = commands.add_parser("all", help="main job: build all FMUs and run every scenario")

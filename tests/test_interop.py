@@ -59,7 +59,7 @@ def ssp_execution(path, step):
 @pytest.mark.parametrize("fmt", ["osp", "ssp"])
 def test_libcosim_reproduces_our_jacobi_master(fmt, build_dir, tmp_path):
     scenario, step, stop = get("ltv-ls-bounded"), 1e-3, 2.0
-    path = export(scenario, fmt, tmp_path, build_dir, step=step, stop_time=stop)
+    path = export(scenario, fmt, tmp_path, build_dir, step=step, stop_time=stop, system_outputs=False)
     execution = osp_execution(path) if fmt == "osp" else ssp_execution(path, step)
     watch = [("observer", f"theta_hat[{j}]") for j in range(1, 9)] + [("observer", "x_hat[1]"), ("observer", "x_hat[2]")]
     theirs = libcosim_run(execution, watch, int(round(stop / step)))
@@ -177,7 +177,7 @@ def _ecospy():
 def test_ecos_runs_the_ssp_package_like_our_jacobi_master(build_dir, tmp_path):
     EcosSimulation = _ecospy()
     step, stop = 1e-3, 2.0
-    path = export(get("ltv-ls-bounded"), "ssp", tmp_path, build_dir, step=step, stop_time=stop)
+    path = export(get("ltv-ls-bounded"), "ssp", tmp_path, build_dir, step=step, stop_time=stop, system_outputs=False)
     simulation = EcosSimulation(step_size=step, ssp_path=str(path))
     simulation.init(parameter_set="start")
     names = [f"theta_hat[{j}]" for j in range(1, 9)] + ["x_hat[1]", "x_hat[2]"]

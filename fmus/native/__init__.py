@@ -27,7 +27,7 @@ import tempfile
 from pathlib import Path
 
 __all__ = ["NativeBuildError", "platform_folder", "fmi_headers", "loader_library", "bridge_library", "bridge_name",
-           "python_record", "identity", "BOOTSTRAP", "OVERRIDE"]
+           "python_record", "identity", "BOOTSTRAP", "OVERRIDE", "STARTS"]
 
 HERE = Path(__file__).parent
 LOADER, BRIDGE = HERE / "loader.c", HERE / "bridge.c"
@@ -39,6 +39,8 @@ HEADERS = tuple(sorted(HERE.glob("*.h")))
 BOOTSTRAP = HERE / "bootstrap.py"
 #: environment variable pointing an FMU at another Python installation (read by the loader)
 OVERRIDE = "OBSFMU_PYTHON"
+#: start values an exported FMU copy sets itself (resources/, read by loader_common.h; fmus/export.py)
+STARTS = "obsfmu_start.txt"
 
 
 class NativeBuildError(RuntimeError):

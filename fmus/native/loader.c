@@ -91,13 +91,14 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
                                                            functions, visible, loggingOn);
     if (inner == NULL) goto done; /* the bridge logged why */
     c = calloc(1, sizeof(Instance));
-    if (c == NULL || core_init(c, &FMI2, functions_of_bridge, inner, name, INSTANTIATED) != 0) {
+    if (c != NULL && functions) c->callbacks = *functions;
+    if (c == NULL || core_init(c, &FMI2, functions_of_bridge, inner, name, INSTANTIATED, resources) != 0) {
         functions_of_bridge->freeInstance(inner);
+        if (c) core_free(c);
         free(c);
         c = NULL;
         goto done;
     }
-    if (functions) c->callbacks = *functions;
 done:
     free(record);
     free(resources);
@@ -109,7 +110,7 @@ void fmi2FreeInstance(fmi2Component component)
     Instance *c = (Instance *)component;
     if (c == NULL) return;
     c->bridge->freeInstance(c->inner);
-    free(c->name);
+    core_free(c);
     free(c);
 }
 
@@ -158,12 +159,7 @@ fmi2Status fmi2Terminate(fmi2Component component)
 fmi2Status fmi2Reset(fmi2Component component)
 {
     ENTER(fmi2Reset, ANY_STATE)
-    fmi2Status status = c->bridge->reset(c->inner);
-    if (status < fmi2Error) {
-        c->state = INSTANTIATED;
-        c->time = 0.0;
-    }
-    return after(c, status);
+    return core_reset(c, INSTANTIATED);
 }
 
 /* ---- values */

@@ -228,6 +228,13 @@ typedef struct {
     const char *prefix;          /* "fmi2" or "fmi3", for messages */
 } Version;
 
+/* A start value of an exported copy (resources/obsfmu_start.txt, see core_read_starts). */
+typedef struct {
+    char type;                    /* 'R' real, 'I' integer */
+    fmi2ValueReference vr;        /* the slave's value reference */
+    double value;
+} Start;
+
 typedef struct {
     const Version *version;
     const ObsfmuBridge *bridge;
@@ -236,6 +243,8 @@ typedef struct {
     double time;                  /* the FMU's current communication point */
     fmi2CallbackFunctions callbacks;
     char *name;
+    Start *starts;                /* applied after instantiation and after every reset */
+    size_t start_count;
 } Core;
 
 /* An FMU state: the slave's plus the state machine's. */
@@ -409,10 +418,67 @@ static char *checked_record(const fmi2CallbackFunctions *callbacks, const char *
     return record;
 }
 
-/* Fill the core of a new instance whose bridge component is `inner`; 0 on success. */
-static int core_init(Core *c, const Version *version, const ObsfmuBridge *bridge, fmi2Component inner,
-                     const char *name, unsigned state)
+/* ------------------------------------------------------------------ start values of an exported copy */
+
+/* resources/obsfmu_start.txt, written by `obsfmu export` into the FMU copies it exports (fmus/export.py):
+ * lines "<R|I> <the slave's value reference> <value>".  The loader sets them right after instantiation
+ * and after every reset, so the copy's own defaults are the start values its modelDescription.xml
+ * declares -- the exported system keeps its configuration in importers that ignore the SSP/OSP
+ * parameter bindings.  No file: no start values.  0 on success, else a message. */
+static int core_read_starts(Core *c, const char *resources, char *message, size_t size)
 {
+    char path[PATH_SIZE + 32], line[256];
+    snprintf(path, sizeof path, "%s/" OBSFMU_STARTS, resources);
+    FILE *file = fopen(path, "r");
+    if (file == NULL) return 0;
+    while (fgets(line, sizeof line, file)) {
+        Start start;
+        unsigned vr;
+        if (line[0] == '#' || line[0] == '\n') continue;
+        if (sscanf(line, " %c %u %lf", &start.type, &vr, &start.value) != 3 || (start.type != 'R' && start.type != 'I')) {
+            snprintf(message, size, "%s is damaged (line: %.100s)", path, line);
+            fclose(file);
+            return -1;
+        }
+        start.vr = vr;
+        Start *grown = realloc(c->starts, (c->start_count + 1) * sizeof(Start));
+        if (grown == NULL) {
+            fclose(file);
+            snprintf(message, size, "out of memory");
+            return -1;
+        }
+        c->starts = grown;
+        c->starts[c->start_count++] = start;
+    }
+    fclose(file);
+    return 0;
+}
+
+static fmi2Status core_apply_starts(Core *c)
+{
+    fmi2Status worst = fmi2OK;
+    for (size_t i = 0; i < c->start_count && worst < fmi2Error; i++) {
+        Start *start = &c->starts[i];
+        fmi2Status status;
+        if (start->type == 'R') {
+            status = c->bridge->setReal(c->inner, &start->vr, 1, &start->value);
+        } else {
+            fmi2Integer integer = (fmi2Integer)start->value;
+            status = c->bridge->setInteger(c->inner, &start->vr, 1, &integer);
+        }
+        worst = status > worst ? status : worst;
+    }
+    return worst;
+}
+
+/* ------------------------------------------------------------------ the life of a core */
+
+/* Fill the core of a new instance whose bridge component is `inner` and set the copy's start
+ * values; 0 on success (on failure the caller frees `inner` and the core, core_free). */
+static int core_init(Core *c, const Version *version, const ObsfmuBridge *bridge, fmi2Component inner,
+                     const char *name, unsigned state, const char *resources)
+{
+    char message[8192];
     c->version = version;
     c->bridge = bridge;
     c->inner = inner;
@@ -421,7 +487,35 @@ static int core_init(Core *c, const Version *version, const ObsfmuBridge *bridge
     c->name = malloc(strlen(name) + 1);
     if (c->name == NULL) return -1;
     strcpy(c->name, name);
-    return 0;
+    if (core_read_starts(c, resources, message, sizeof message) != 0) {
+        say(&c->callbacks, name, fmi2Error, "%sInstantiate: %s", version->prefix, message);
+        return -1;
+    }
+    return core_apply_starts(c) >= fmi2Error ? -1 : 0;
+}
+
+static void core_free(Core *c)
+{
+    free(c->name);
+    free(c->starts);
+    c->name = NULL;
+    c->starts = NULL;
+    c->start_count = 0;
+}
+
+/* fmi2Reset/fmi3Reset: a fresh slave, the copy's start values, state instantiated at time 0. */
+static fmi2Status core_reset(Core *c, unsigned instantiated)
+{
+    fmi2Status status = c->bridge->reset(c->inner);
+    if (status < fmi2Error) {
+        fmi2Status set = core_apply_starts(c);
+        status = set > status ? set : status;
+    }
+    if (status < fmi2Error) {
+        c->state = instantiated;
+        c->time = 0.0;
+    }
+    return after(c, status);
 }
 
 #endif

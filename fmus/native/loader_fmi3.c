@@ -216,7 +216,7 @@ static void free_instance(Instance *c)
 {
     if (c == NULL) return;
     free_table(c);
-    free(c->core.name);
+    core_free(&c->core);
     free(c);
 }
 
@@ -280,7 +280,7 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
     fmi2Component inner = functions_of_bridge->instantiate(name, fmi2CoSimulation, instantiationToken, resourcePath,
                                                            &c->core.callbacks, visible, loggingOn);
     if (inner == NULL) goto failed; /* the bridge logged why */
-    if (core_init(&c->core, &FMI3, functions_of_bridge, inner, name, INSTANTIATED) != 0) {
+    if (core_init(&c->core, &FMI3, functions_of_bridge, inner, name, INSTANTIATED, resources) != 0) {
         functions_of_bridge->freeInstance(inner);
         goto failed;
     }
@@ -380,12 +380,7 @@ fmi3Status fmi3Terminate(fmi3Instance instance)
 fmi3Status fmi3Reset(fmi3Instance instance)
 {
     ENTER(fmi3Reset, STATE_SETTABLE)
-    fmi2Status status = c->core.bridge->reset(c->core.inner);
-    if (status < fmi2Error) {
-        c->core.state = INSTANTIATED;
-        c->core.time = 0.0;
-    }
-    return AFTER(c, status);
+    return (fmi3Status)core_reset(&c->core, INSTANTIATED);
 }
 
 /* ------------------------------------------------------------------ values */

@@ -21,6 +21,7 @@
 #include "fmi2FunctionTypes.h"
 
 #define OBSFMU_RECORD "obsfmu_native.txt"
+#define OBSFMU_STARTS "obsfmu_start.txt" /* start values of an exported copy (loader_common.h) */
 #define OBSFMU_BRIDGE_SYMBOL "obsfmu_bridge"
 #define OBSFMU_BRIDGE_ABI 1
 

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..builder import build_fmu, is_current
+from ..fmi3 import build_folder
 from ..definition import FmuDefinition
 from ..master import Component, Connection, SimulationError, System, cosimulate
 from ..result import Result
@@ -80,14 +81,18 @@ def get(name: str) -> Scenario:
         raise SimulationError(f"unknown scenario {name!r}; available: {', '.join(SCENARIOS)}") from None
 
 
-def ensure_fmus(scenario: Scenario, build_dir: Path, force: bool = False) -> dict[str, Path]:
-    """Build the scenario's FMUs into ``build_dir`` unless current ones are there."""
+def ensure_fmus(scenario: Scenario, build_dir: Path, force: bool = False, fmi_version: int = 2) -> dict[str, Path]:
+    """Build the scenario's FMUs into ``build_dir`` unless current ones are there.
+
+    FMI 3.0 FMUs (``fmi_version=3``) go to ``build_dir/fmi3`` (:func:`fmus.fmi3.build_folder`).
+    """
     paths = {}
+    folder = build_folder(build_dir, fmi_version)
     for item in scenario.definitions():
         definition, extra_modules = item if isinstance(item, tuple) else (item, ())
-        path = Path(build_dir) / f"{definition.model_name}.fmu"
-        if force or not is_current(path, definition, extra_modules):
-            build_fmu(definition, build_dir, extra_modules)
+        path = folder / f"{definition.model_name}.fmu"
+        if force or not is_current(path, definition, extra_modules, fmi_version):
+            build_fmu(definition, folder, extra_modules, fmi_version)
         paths[definition.model_name] = path
     return paths
 
@@ -124,10 +129,11 @@ def system(scenario: Scenario, fmus: dict[str, Path], overrides=()) -> System:
 
 def run(name: str, build_dir: Path | str = "build", *, stop_time: float | None = None,
         step: float | None = None, order: str | None = None, coupling: str | None = None,
-        overrides=(), progress: bool = False, tolerance: float = 1e-6) -> tuple[Result, Summary | None]:
+        overrides=(), progress: bool = False, tolerance: float = 1e-6,
+        fmi_version: int = 2) -> tuple[Result, Summary | None]:
     """Build (if needed) and co-simulate scenario ``name``; returns the result and its summary."""
     scenario = get(name)
-    fmus = ensure_fmus(scenario, Path(build_dir))
+    fmus = ensure_fmus(scenario, Path(build_dir), fmi_version=fmi_version)
     result = cosimulate(system(scenario, fmus, overrides),
                         stop_time=scenario.stop_time if stop_time is None else stop_time,
                         step=scenario.step if step is None else step,
