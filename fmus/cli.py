@@ -310,9 +310,19 @@ def _run_into(out: Path, build_dir: Path, names, stop: StopRequest) -> int:
     return 0
 
 
+def _run_and_report(out: Path, build_dir: Path, names: list[str]) -> int:
+    """Run ``names`` into ``out`` (Ctrl-C stops them), then write the report of every scenario there."""
+    from . import report
+    with StopRequest() as stop:
+        status = _run_into(out, build_dir, names, stop)
+        if status:
+            return status
+        print(f"\nwrote {report.write_report(out, build_dir)}")
+    return 0
+
+
 def cmd_all(args) -> int:
     """The main job: build every FMU, validate it, run every scenario, write the files and the report."""
-    from . import report
     from .scenarios import SCENARIOS
 
     out = check_directory("--out", args.out)
@@ -320,12 +330,7 @@ def cmd_all(args) -> int:
     if _report_built(_build_all(build_dir)):
         print("obsfmu: error: some FMUs are not valid", file=sys.stderr)
         return 1
-    with StopRequest() as stop:
-        status = _run_into(out, build_dir, SCENARIOS, stop)
-        if status:
-            return status
-        print(f"\nwrote {report.write_report(out, build_dir)}")
-    return 0
+    return _run_and_report(out, build_dir, list(SCENARIOS))
 
 
 def cmd_report(args) -> int:
@@ -335,12 +340,7 @@ def cmd_report(args) -> int:
     out = check_directory("--out", args.out)
     build_dir = check_directory("--build-dir", args.build_dir, writable=False)
     missing = [name for name in SCENARIOS if not report.has_run(out, name)]
-    with StopRequest() as stop:
-        status = _run_into(out, build_dir, missing, stop)
-        if status:
-            return status
-        print(f"wrote {report.write_report(out, build_dir)}")
-    return 0
+    return _run_and_report(out, build_dir, missing)
 
 
 # ----------------------------------------------------------------------------- arguments
