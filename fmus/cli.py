@@ -24,11 +24,16 @@ import time as wallclock
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from observers.checks import ParameterError
 
 from .master import COUPLINGS, ORDERS, SimulationError
 from .output import OutputError, StreamingRecorder, check_directory, check_file
+
+if TYPE_CHECKING:
+    from .result import Result
+    from .scenarios import Summary
 
 __all__ = ["main", "parser", "register", "Subcommand"]
 
@@ -189,8 +194,8 @@ def _figure_paths(option: str, path: str) -> list[Path]:
 class Outcome:
     """One scenario run written to disk."""
 
-    result: object
-    summary: object
+    result: Result
+    summary: Summary | None
     csv: Path | None
     wall_time: float
 
