@@ -16,6 +16,7 @@ makes the FMUs do inside what our master does with input derivatives.
 
 from __future__ import annotations
 
+import math
 import shutil
 import zipfile
 from pathlib import Path
@@ -24,7 +25,7 @@ from xml.etree.ElementTree import Element, SubElement, tostring
 
 from fmpy import read_model_description
 
-from .master import SimulationError
+from .master import COUPLINGS, SimulationError
 from .scenarios import Scenario, ensure_fmus, system
 
 __all__ = ["FORMATS", "export"]
@@ -141,10 +142,15 @@ def export(scenario: Scenario, fmt: str, out_dir: Path | str, build_dir: Path | 
     """Write the scenario for another tool; returns the ``.xml`` (osp) or ``.ssp`` file."""
     if fmt not in FORMATS:
         raise SimulationError(f"format: {fmt!r} is not one of {FORMATS}")
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
     step = scenario.step if step is None else step
     stop_time = scenario.stop_time if stop_time is None else stop_time
+    for name, value in (("step", step), ("stop_time", stop_time)):
+        if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+            raise SimulationError(f"{name}: must be a positive finite number, got {value!r}")
+    if coupling is not None and coupling not in COUPLINGS:
+        raise SimulationError(f"coupling: {coupling!r} is not one of {COUPLINGS}")
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
     exported = _Exported(scenario, Path(build_dir), overrides, coupling or scenario.coupling)
     if fmt == "osp":
         return _osp(exported, scenario, out_dir, step)
