@@ -33,6 +33,7 @@ structures name FMI 2.0 scalar variables (libcosim imports FMI 1.0/2.0).
 
 from __future__ import annotations
 
+import math
 import zipfile
 from pathlib import Path
 from xml.dom import minidom
@@ -42,7 +43,7 @@ from fmpy import read_model_description
 
 from .fmi3 import TABLE
 from .fmi3.elements import elements
-from .master import SimulationError
+from .master import COUPLINGS, SimulationError
 from .native import STARTS
 from .scenarios import Scenario, ensure_fmus, system
 
@@ -283,10 +284,15 @@ def export(scenario: Scenario, fmt: str, out_dir: Path | str, build_dir: Path | 
     """
     if fmt not in FORMATS:
         raise SimulationError(f"format: {fmt!r} is not one of {FORMATS}")
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
     step = scenario.step if step is None else step
     stop_time = scenario.stop_time if stop_time is None else stop_time
+    for name, value in (("step", step), ("stop_time", stop_time)):
+        if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+            raise SimulationError(f"{name}: must be a positive finite number, got {value!r}")
+    if coupling is not None and coupling not in COUPLINGS:
+        raise SimulationError(f"coupling: {coupling!r} is not one of {COUPLINGS}")
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
     exported = _Exported(scenario, Path(build_dir), overrides, coupling or scenario.coupling, fmi_version)
     if fmt == "osp":
         return _osp(exported, scenario, out_dir, step)

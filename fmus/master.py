@@ -595,12 +595,12 @@ class _Loop:
 
 def _fixed(stepper: _Stepper, start_time, stop_time, step, loop: _Loop) -> None:
     steps = int(np.ceil((stop_time - start_time) / step - 1e-9))
-    times = np.minimum(start_time + step * np.arange(steps + 1), stop_time)
-    for k in range(steps):
-        h = step if k < steps - 1 else times[k + 1] - times[k]  # one step length: cached discretisations
-        stepper.round(times[k], h)
-        loop.record(times[k + 1], stepper.live)
-        if not loop.accepted(times[k + 1], (k + 1) / steps):
+    for k in range(steps):  # times computed as they come: no array of every step (bounded memory)
+        t, t_next = start_time + step * k, min(start_time + step * (k + 1), stop_time)
+        h = step if k < steps - 1 else t_next - t  # one step length: cached discretisations
+        stepper.round(t, h)
+        loop.record(t_next, stepper.live)
+        if not loop.accepted(t_next, (k + 1) / steps):
             return
 
 

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 from ..definition import element_names
 
-__all__ = ["Element", "elements"]
+__all__ = ["Element", "elements", "scalar_variables"]
 
 #: FMI 3.0 type -> the FMI 2.0 type the rest of the project speaks
 _TYPES = {"Float64": "Real", "Int32": "Integer", "Boolean": "Boolean", "String": "String"}
@@ -31,7 +31,12 @@ class Element:
     valueReference: int     #: the FMI 3.0 variable's value reference
     type: str               #: ``"Real"`` or ``"Integer"`` (FMI 2.0 type names)
     causality: str
+    variability: str
     start: str | None       #: this element's start value (text), if any
+    min: str | None = None
+    max: str | None = None
+    unit: str | None = None
+    description: str | None = None
 
 
 def elements(model_description) -> dict[str, Element]:
@@ -45,6 +50,21 @@ def elements(model_description) -> dict[str, Element]:
         starts = variable.start.split() if variable.start else [None] * len(names)
         for index, name in enumerate(names):
             found[name] = Element(name, variable.name, index, len(names), variable.valueReference,
-                                  _TYPES.get(variable.type, variable.type), variable.causality,
-                                  starts[index] if index < len(starts) else None)
+                                  _TYPES.get(variable.type, variable.type), variable.causality, variable.variability,
+                                  starts[index] if index < len(starts) else None, variable.min, variable.max,
+                                  variable.unit, variable.description)
     return found
+
+
+def scalar_variables(fmu) -> list:
+    """The variables of ``fmu`` by FMI 2.0 name: an FMI 2.0 FMU's own, an FMI 3.0 FMU's elements.
+
+    Both have ``name``, ``type`` (FMI 2.0 names), ``causality``, ``variability``, ``start``, ``min``,
+    ``max``, ``unit`` and ``description``.
+    """
+    from fmpy import read_model_description
+
+    description = read_model_description(str(fmu), validate=False)
+    if description.fmiVersion.startswith("3"):
+        return list(elements(description).values())
+    return [v for v in description.modelVariables]
