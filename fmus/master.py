@@ -169,6 +169,15 @@ class _Instance:
                 self.slave.setRealInputDerivatives(self.input_vrs, [1] * len(self.input_vrs), derivatives.tolist())
 
 
+def _instance(component: Component, unzip_root: Path, log):
+    """An :class:`_Instance`, or for an FMI 3.0 FMU the adapter with its interface (fmus/fmi3/instance.py)."""
+    from .fmi3.instance import Fmi3Instance, fmi_version_of
+    fmu = Path(component.fmu)
+    if fmu.is_file() and fmi_version_of(fmu) == 3:
+        return Fmi3Instance(component, extract(str(fmu), unzipdir=str(unzip_root / component.name)), log)
+    return _Instance(component, unzip_root, log)
+
+
 class _Logger:
     """Collects FMU log messages; echoes warnings and errors to stderr."""
 
@@ -435,7 +444,7 @@ class Session:
         self._fresh = True
         try:
             for component in system.components:
-                self.instances[component.name] = _Instance(component, self._unzip_root, self.logger)
+                self.instances[component.name] = _instance(component, self._unzip_root, self.logger)
             _wire(self.instances, system.connections)
             for inst in self.instances.values():
                 inst.slave.instantiate(callbacks=self.logger.callbacks, loggingOn=True)
