@@ -26,3 +26,14 @@ def every_fmu(build_dir):
         for model, path in ensure_fmus(scenario, build_dir).items():
             found.setdefault(model, (scenario.step, path))
     return found
+
+
+@pytest.fixture(scope="session")
+def every_fmu3(build_dir):
+    """model -> (scenario step, FMI 3.0 fmu path) for every distinct FMU used by a scenario (build_dir/fmi3)."""
+    from fmus.scenarios import SCENARIOS, ensure_fmus
+    found = {}
+    for scenario in SCENARIOS.values():
+        for model, path in ensure_fmus(scenario, build_dir, fmi_version=3).items():
+            found.setdefault(model, (scenario.step, path))
+    return found
