@@ -4,15 +4,25 @@
  *
  *   importer SCRIPT      runs the commands of SCRIPT (one per line, in order, in ONE process):
  *
- *   fmu NAME DIR IDENTIFIER GUID    an FMU unzipped in DIR (binaries/linux64/IDENTIFIER.so)
+ *   fmu NAME DIR IDENTIFIER GUID    an FMI 2.0 FMU unzipped in DIR (binaries/linux64/IDENTIFIER.so)
  *   output NAME VR                  an output; outputs are numbered 0, 1, ... in this order
  *   input NAME VR SOURCE            an input fed by output number SOURCE
  *   feedthrough NAME                NAME has outputs that depend on its inputs
  *   start NAME real|integer VR X    a start value, set in initialization mode
+ *
+ *   fmu3 NAME DIR IDENTIFIER TOKEN  an FMI 3.0 FMU unzipped in DIR (binaries/x86_64-linux/IDENTIFIER.so);
+ *                                   for it, instead of output/input/start (arrays: whole variables):
+ *   output3 NAME VR COUNT           an output variable of COUNT elements (numbered on, like outputs)
+ *   array3 NAME VR SIZE             an input variable of SIZE elements (set whole, in this order)
+ *   input3 NAME VR INDEX SOURCE     element INDEX (from 0) of input variable VR fed by output SOURCE
+ *   start3 NAME real|integer VR SIZE INDEX X
+ *                                   element INDEX of the variable VR of SIZE elements starts at X
+ *
  *   cosim jacobi linear|hold T0 T1 H FILE
  *                                   instantiate every FMU, co-simulate like fmus.master's Jacobi
- *                                   master (same rounds, same input coupling), write the outputs
- *                                   at every communication point to FILE (CSV), free them all
+ *                                   master (same rounds, same input coupling: FMI 2.0 input
+ *                                   derivatives, or the FMI 3.0 intermediate update at t + h), write
+ *                                   the outputs at every communication point to FILE (CSV), free them
  *   calls ID NAME IN OUT MODE CALL...
  *                                   a fresh instance of NAME; the FMI calls CALL... (see call())
  *                                   with IN a real input, OUT an output, MODE an Integer parameter;
@@ -31,6 +41,7 @@
 #include <time.h>
 
 #include "fmi2Functions.h"
+#include "fmi3Functions.h"
 
 #define FMI(X) X(Instantiate) X(FreeInstance) X(SetupExperiment) X(EnterInitializationMode)                  \
     X(ExitInitializationMode) X(Terminate) X(Reset) X(GetReal) X(GetInteger) X(GetBoolean) X(GetString)       \
@@ -39,18 +50,32 @@
     X(SetRealInputDerivatives) X(GetRealOutputDerivatives) X(DoStep) X(CancelStep) X(GetStatus)               \
     X(GetRealStatus) X(GetIntegerStatus) X(GetBooleanStatus) X(GetStringStatus) X(SetDebugLogging)
 
+#define FMI3(X) X(InstantiateCoSimulation) X(FreeInstance) X(EnterInitializationMode) X(ExitInitializationMode)     \
+    X(Terminate) X(GetFloat64) X(SetFloat64) X(GetInt32) X(SetInt32) X(DoStep)
+
 #define MAX 64
 
 typedef struct {
 #define MEMBER(f) fmi2##f##TYPE *f;
     FMI(MEMBER)
+    struct {
+#define MEMBER3(f) fmi3##f##TYPE *f;
+        FMI3(MEMBER3)
+    } v3;
+    int version; /* 2 or 3 */
     char name[64], resources[4200], guid[128];
     fmi2Component c;
     int outputs, output_index[MAX], inputs, input_source[MAX], feedthrough;
     fmi2ValueReference output_vr[MAX], input_vr[MAX];
-    int starts, start_integer[MAX];
+    int starts, start_integer[MAX], start_size[MAX], start_index[MAX];
     fmi2ValueReference start_vr[MAX];
     double start_value[MAX];
+    /* FMI 3.0: output variables (their elements are outputs output_index[0], +1, ...), input variables
+     * kept in one buffer, the wired elements' places in it, and their slopes over the current step */
+    int output_arrays, output_count[MAX], arrays, array_size[MAX], array_offset[MAX], input_position[MAX];
+    fmi3ValueReference output_array_vr[MAX], array_vr[MAX];
+    double buffer[MAX], slopes[MAX], step_start;
+    int linear;
 } Fmu;
 
 static Fmu fmus[16];
@@ -97,6 +122,26 @@ static void load(Fmu *f, const char *directory, const char *identifier)
     snprintf(f->resources, sizeof f->resources, "file://%s/resources", directory);
 }
 
+/* FMI 3.0 logMessage: printed like the FMI 2.0 logger's messages */
+static void log3(fmi3InstanceEnvironment env, fmi3Status status, fmi3String category, fmi3String message)
+{
+    (void)category;
+    printf("log %s %d %s\n", env ? ((Fmu *)env)->name : "?", status, message);
+    fflush(stdout);
+}
+
+static void load3(Fmu *f, const char *directory, const char *identifier)
+{
+    char path[4200];
+    snprintf(path, sizeof path, "%s/binaries/x86_64-linux/%s.so", directory, identifier);
+    void *library = dlopen(path, RTLD_NOW | RTLD_LOCAL);
+    if (library == NULL) die("dlopen:", dlerror());
+#define LOAD3(f_) if ((f->v3.f_ = (fmi3##f_##TYPE *)dlsym(library, "fmi3" #f_)) == NULL) die("missing fmi3" #f_, path);
+    FMI3(LOAD3)
+    snprintf(f->resources, sizeof f->resources, "%s/resources/", directory);
+    f->version = 3;
+}
+
 static double now(void)
 {
     struct timespec t;
@@ -108,6 +153,31 @@ static fmi2Component instantiate(Fmu *f, const char *guid)
 {
     double begin = now();
     fmi2Component c = f->Instantiate(f->name, fmi2CoSimulation, guid, f->resources, &callbacks, fmi2False, fmi2False);
+    printf("instantiate %s %s %.6f\n", f->name, c ? "ok" : "null", now() - begin);
+    return c;
+}
+
+/* FMI 3.0 intermediate update (inside fmi3DoStep): the inputs at `time` on the line of the step */
+static void intermediate(fmi3InstanceEnvironment env, fmi3Float64 time, fmi3Boolean set_requested,
+                         fmi3Boolean get_allowed, fmi3Boolean finished, fmi3Boolean can_return_early,
+                         fmi3Boolean *early_return, fmi3Float64 *early_time)
+{
+    (void)get_allowed; (void)finished; (void)can_return_early; (void)early_return; (void)early_time;
+    Fmu *f = (Fmu *)env;
+    double ends[MAX];
+    if (!set_requested || !f->linear || f->arrays == 0) return;
+    int total = f->array_offset[f->arrays - 1] + f->array_size[f->arrays - 1];
+    for (int k = 0; k < total; k++) ends[k] = f->buffer[k] + (time - f->step_start) * f->slopes[k];
+    if (f->v3.SetFloat64(f->c, f->array_vr, f->arrays, ends, total) > fmi3Warning) die("intermediate update of", f->name);
+}
+
+static fmi2Component instantiate3(Fmu *f, int linear)
+{
+    double begin = now();
+    f->linear = linear;
+    fmi3Instance c = f->v3.InstantiateCoSimulation(f->name, f->guid, f->resources, fmi3False, fmi3True, fmi3False,
+                                                   fmi3False, f->array_vr, linear ? f->arrays : 0, f, log3,
+                                                   linear ? intermediate : NULL);
     printf("instantiate %s %s %.6f\n", f->name, c ? "ok" : "null", now() - begin);
     return c;
 }
@@ -124,10 +194,25 @@ static void check(fmi2Status status, Fmu *f, const char *what)
 
 static double live[MAX * 4], now_values[MAX * 4], before[MAX * 4];
 
+static void set_inputs3(Fmu *f, const double *source, const double *slopes)
+{
+    if (f->arrays == 0) return;
+    for (int i = 0; i < f->inputs; i++) {
+        f->buffer[f->input_position[i]] = source[f->input_source[i]];
+        f->slopes[f->input_position[i]] = slopes ? slopes[f->input_source[i]] : 0.0;
+    }
+    int total = f->array_offset[f->arrays - 1] + f->array_size[f->arrays - 1];
+    check(f->v3.SetFloat64(f->c, f->array_vr, f->arrays, f->buffer, total), f, "SetFloat64");
+}
+
 static void set_inputs(Fmu *f, const double *source, const double *slopes)
 {
     double values[MAX], derivatives[MAX];
     fmi2Integer orders[MAX];
+    if (f->version == 3) {
+        set_inputs3(f, source, slopes);
+        return;
+    }
     if (f->inputs == 0) return;
     for (int i = 0; i < f->inputs; i++) {
         values[i] = source[f->input_source[i]];
@@ -141,7 +226,12 @@ static void set_inputs(Fmu *f, const double *source, const double *slopes)
 static void refresh(Fmu *f)
 {
     double values[MAX];
-    check(f->GetReal(f->c, f->output_vr, f->outputs, values), f, "GetReal");
+    if (f->version == 3) {
+        if (f->outputs) check(f->v3.GetFloat64(f->c, f->output_array_vr, f->output_arrays, values, f->outputs), f,
+                              "GetFloat64");
+    } else {
+        check(f->GetReal(f->c, f->output_vr, f->outputs, values), f, "GetReal");
+    }
     for (int i = 0; i < f->outputs; i++) live[f->output_index[i]] = values[i];
 }
 
@@ -161,6 +251,15 @@ static void record(FILE *csv, double t)
     fprintf(csv, "\n");
 }
 
+static fmi2Status do_step(Fmu *f, double t, double h)
+{
+    if (f->version != 3) return f->DoStep(f->c, t, h, fmi2True);
+    fmi3Boolean event, terminate, early;
+    fmi3Float64 last;
+    f->step_start = t;
+    return (fmi2Status)f->v3.DoStep(f->c, t, h, fmi3True, &event, &terminate, &early, &last);
+}
+
 static void cosim(int linear, double start, double stop, double step, const char *file)
 {
     FILE *csv = fopen(file, "w");
@@ -168,22 +267,45 @@ static void cosim(int linear, double start, double stop, double step, const char
     int feedthrough = 0;
     for (int i = 0; i < count; i++) {
         Fmu *f = &fmus[i];
-        if ((f->c = instantiate(f, f->guid)) == NULL) die("fmi2Instantiate failed for", f->name);
-        check(f->SetupExperiment(f->c, fmi2False, 0.0, start, fmi2True, stop), f, "SetupExperiment");
-        check(f->EnterInitializationMode(f->c), f, "EnterInitializationMode");
+        if (f->version == 3) {
+            if ((f->c = instantiate3(f, linear)) == NULL) die("fmi3InstantiateCoSimulation failed for", f->name);
+            check(f->v3.EnterInitializationMode(f->c, fmi3False, 0.0, start, fmi3True, stop), f,
+                  "EnterInitializationMode");
+        } else {
+            if ((f->c = instantiate(f, f->guid)) == NULL) die("fmi2Instantiate failed for", f->name);
+            check(f->SetupExperiment(f->c, fmi2False, 0.0, start, fmi2True, stop), f, "SetupExperiment");
+            check(f->EnterInitializationMode(f->c), f, "EnterInitializationMode");
+        }
         feedthrough += f->feedthrough;
     }
     for (int i = 0; i < count; i++) {
         Fmu *f = &fmus[i];
         for (int s = 0; s < f->starts; s++) {
             fmi2Integer integer = (fmi2Integer)f->start_value[s];
+            if (f->version == 3) { /* the element's variable, set whole */
+                double whole[MAX];
+                fmi3ValueReference vr = f->start_vr[s];
+                if (f->start_integer[s]) {
+                    check(f->v3.SetInt32(f->c, &vr, 1, &integer, 1), f, "start value");
+                    continue;
+                }
+                check(f->v3.GetFloat64(f->c, &vr, 1, whole, f->start_size[s]), f, "GetFloat64 (start value)");
+                whole[f->start_index[s]] = f->start_value[s];
+                check(f->v3.SetFloat64(f->c, &vr, 1, whole, f->start_size[s]), f, "start value");
+                continue;
+            }
             check(f->start_integer[s] ? f->SetInteger(f->c, &f->start_vr[s], 1, &integer)
                                       : f->SetReal(f->c, &f->start_vr[s], 1, &f->start_value[s]), f, "start value");
+        }
+        if (f->version == 3 && f->arrays) { /* the inputs' own values for the elements nobody feeds */
+            int total = f->array_offset[f->arrays - 1] + f->array_size[f->arrays - 1];
+            check(f->v3.GetFloat64(f->c, f->array_vr, f->arrays, f->buffer, total), f, "GetFloat64 (inputs)");
         }
     }
     settle(count + 1);
     for (int i = 0; i < count; i++) {
-        check(fmus[i].ExitInitializationMode(fmus[i].c), &fmus[i], "ExitInitializationMode");
+        check(fmus[i].version == 3 ? (fmi2Status)fmus[i].v3.ExitInitializationMode(fmus[i].c)
+                                   : fmus[i].ExitInitializationMode(fmus[i].c), &fmus[i], "ExitInitializationMode");
         refresh(&fmus[i]);
     }
     memcpy(now_values, live, sizeof live);
@@ -196,7 +318,7 @@ static void cosim(int linear, double start, double stop, double step, const char
         for (int j = 0; j < total_outputs; j++) slopes[j] = have_before ? (now_values[j] - before[j]) / h_before : 0.0;
         for (int i = 0; i < count; i++) { /* every FMU steps from the outputs at t */
             set_inputs(&fmus[i], now_values, linear ? slopes : NULL);
-            check(fmus[i].DoStep(fmus[i].c, t, h, fmi2True), &fmus[i], "DoStep");
+            check(do_step(&fmus[i], t, h), &fmus[i], "DoStep");
             refresh(&fmus[i]);
         }
         if (feedthrough) settle(feedthrough);
@@ -207,8 +329,13 @@ static void cosim(int linear, double start, double stop, double step, const char
         record(csv, next);
     }
     for (int i = 0; i < count; i++) {
-        check(fmus[i].Terminate(fmus[i].c), &fmus[i], "Terminate");
-        fmus[i].FreeInstance(fmus[i].c);
+        if (fmus[i].version == 3) {
+            check((fmi2Status)fmus[i].v3.Terminate(fmus[i].c), &fmus[i], "Terminate");
+            fmus[i].v3.FreeInstance(fmus[i].c);
+        } else {
+            check(fmus[i].Terminate(fmus[i].c), &fmus[i], "Terminate");
+            fmus[i].FreeInstance(fmus[i].c);
+        }
         fmus[i].c = NULL;
     }
     fclose(csv);
@@ -353,6 +480,35 @@ int main(int argc, char **argv)
             snprintf(f->name, sizeof f->name, "%s", tokens[1]);
             snprintf(f->guid, sizeof f->guid, "%s", tokens[4]);
             load(f, tokens[2], tokens[3]);
+        } else if (!strcmp(tokens[0], "fmu3") && n == 5) {
+            Fmu *f = &fmus[count++];
+            snprintf(f->name, sizeof f->name, "%s", tokens[1]);
+            snprintf(f->guid, sizeof f->guid, "%s", tokens[4]);
+            load3(f, tokens[2], tokens[3]);
+        } else if (!strcmp(tokens[0], "output3") && n == 4) {
+            Fmu *f = find(tokens[1]);
+            f->output_array_vr[f->output_arrays++] = (fmi3ValueReference)atol(tokens[2]);
+            for (int k = atoi(tokens[3]); k > 0; k--) f->output_index[f->outputs++] = total_outputs++;
+        } else if (!strcmp(tokens[0], "array3") && n == 4) {
+            Fmu *f = find(tokens[1]);
+            int a = f->arrays++;
+            f->array_vr[a] = (fmi3ValueReference)atol(tokens[2]);
+            f->array_size[a] = atoi(tokens[3]);
+            f->array_offset[a] = a ? f->array_offset[a - 1] + f->array_size[a - 1] : 0;
+        } else if (!strcmp(tokens[0], "input3") && n == 5) {
+            Fmu *f = find(tokens[1]);
+            int a = 0;
+            while (a < f->arrays && f->array_vr[a] != (fmi3ValueReference)atol(tokens[2])) a++;
+            if (a == f->arrays) die("input3 before array3 of", tokens[2]);
+            f->input_position[f->inputs] = f->array_offset[a] + atoi(tokens[3]);
+            f->input_source[f->inputs++] = atoi(tokens[4]);
+        } else if (!strcmp(tokens[0], "start3") && n == 7) {
+            Fmu *f = find(tokens[1]);
+            f->start_integer[f->starts] = !strcmp(tokens[2], "integer");
+            f->start_vr[f->starts] = (fmi2ValueReference)atol(tokens[3]);
+            f->start_size[f->starts] = atoi(tokens[4]);
+            f->start_index[f->starts] = atoi(tokens[5]);
+            f->start_value[f->starts++] = strtod(tokens[6], NULL);
         } else if (!strcmp(tokens[0], "output") && n == 3) {
             Fmu *f = find(tokens[1]);
             f->output_vr[f->outputs] = (fmi2ValueReference)atol(tokens[2]);

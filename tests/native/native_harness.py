@@ -56,18 +56,36 @@ class Unzipped:
                    read_model_description(str(fmu)))
 
     @property
+    def fmi3(self) -> bool:
+        return self.description.fmiVersion.startswith("3")
+
+    @property
+    def elements(self) -> dict:
+        """FMI 2.0 element names -> FMI 3.0 elements (fmus/fmi3/elements.py); {} for an FMI 2.0 FMU."""
+        from fmus.fmi3.elements import elements
+        return elements(self.description) if self.fmi3 else {}
+
+    @property
     def outputs(self) -> list[str]:
+        if self.fmi3:
+            return [name for name, e in self.elements.items() if e.causality == "output"]
         return [v.name for v in self.description.modelVariables if v.causality == "output"]
 
     def vr(self, name: str) -> int:
         return self.variables[name].valueReference
 
     def port(self, name: str) -> list[str]:
-        return [name] if name in self.variables else [n for n in self.variables if n.startswith(name + "[")]
+        names = self.elements or self.variables
+        return [name] if name in names else [n for n in names if n.startswith(name + "[")]
 
     def declaration(self) -> str:
         identifier = self.description.coSimulation.modelIdentifier
+        if self.fmi3:
+            return f"fmu3 {self.instance} {self.directory} {identifier} {self.description.instantiationToken}"
         return f"fmu {self.instance} {self.directory} {identifier} {self.description.guid}"
+
+    def variables3(self, causality: str) -> list:
+        return [v for v in self.description.modelVariables if v.causality == causality]
 
 
 def system_script(unzipped: list[Unzipped], connections, starts: dict[str, dict[str, float]]) -> list[str]:
@@ -78,17 +96,34 @@ def system_script(unzipped: list[Unzipped], connections, starts: dict[str, dict[
         lines.append(u.declaration())
         offsets[u.instance] = offset
         offset += len(u.outputs)
-        lines += [f"output {u.instance} {u.vr(name)}" for name in u.outputs]
+        if u.fmi3:  # whole variables: outputs in their order, every input variable
+            elements = u.elements
+            lines += [f"output3 {u.instance} {v.valueReference} {sum(e.variable == v.name for e in elements.values())}"
+                      for v in u.variables3("output")]
+            lines += [f"array3 {u.instance} {v.valueReference} {sum(e.variable == v.name for e in elements.values())}"
+                      for v in u.variables3("input")]
+        else:
+            lines += [f"output {u.instance} {u.vr(name)}" for name in u.outputs]
         if any(o.dependencies for o in u.description.outputs):
             lines.append(f"feedthrough {u.instance}")
         for name, value in starts.get(u.instance, {}).items():
+            if u.fmi3:
+                e = u.elements[name]
+                kind = "integer" if e.type == "Integer" else "real"
+                lines.append(f"start3 {u.instance} {kind} {e.valueReference} {e.size} {e.index} {value!r}")
+                continue
             kind = "integer" if u.variables[name].type in ("Integer", "Enumeration") else "real"
             lines.append(f"start {u.instance} {kind} {u.vr(name)} {value!r}")
     for connection in connections:
         (src, src_var), (dst, dst_var) = (connection.source.split(".", 1), connection.target.split(".", 1))
         for out_name, in_name in zip(by_name[src].port(src_var), by_name[dst].port(dst_var), strict=True):
             source = offsets[src] + by_name[src].outputs.index(out_name)
-            lines.append(f"input {dst} {by_name[dst].vr(in_name)} {source}")
+            target = by_name[dst]
+            if target.fmi3:
+                e = target.elements[in_name]
+                lines.append(f"input3 {dst} {e.valueReference} {e.index} {source}")
+            else:
+                lines.append(f"input {dst} {target.vr(in_name)} {source}")
     return lines
 
 
