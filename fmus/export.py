@@ -162,13 +162,13 @@ class _Exported:
         fmu, _ = self.copies()[instance]
         values = list(self.typed_start(instance))
         with zipfile.ZipFile(fmu) as source, zipfile.ZipFile(target, "w", zipfile.ZIP_DEFLATED) as copy:
+            table = source.read(f"resources/{TABLE}").decode() if self.fmi_version == 3 else ""
             for item in source.infolist():
                 data = source.read(item)
                 if item.filename == "modelDescription.xml" and values:
                     data = self._described(instance, data, values)
-                copy.writestr(item, data)
+                copy.writestr(zipfile.ZipInfo(item.filename, item.date_time), data, zipfile.ZIP_DEFLATED)
             if values:
-                table = source.read(f"resources/{TABLE}").decode() if self.fmi_version == 3 else ""
                 copy.writestr(f"resources/{STARTS}", self._starts(instance, values, table))
 
     def _described(self, instance: str, description: bytes, values) -> bytes:
