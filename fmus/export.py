@@ -42,6 +42,7 @@ from xml.etree.ElementTree import Element, SubElement, fromstring, tostring
 from fmpy import read_model_description
 
 from .fmi3 import TABLE
+from .fmi3.description import read_table
 from .fmi3.elements import elements
 from .master import COUPLINGS, SimulationError
 from .native import STARTS
@@ -125,26 +126,14 @@ class _Exported:
                 whole.append(pair)
         return whole
 
-    def ports(self, instance: str) -> list[tuple[str, str]]:
-        """(name in the FMU, type) of every input and output of ``instance``."""
+    def ports(self, instance: str) -> list[tuple[str, str, str]]:
+        """(name in the FMU, type, causality) of every input and output (whole variables for FMI 3.0)."""
         found = {}
         for name, variable in self.variables[instance].items():
             if variable.causality in ("input", "output"):
-                found.setdefault(name if self.fmi_version == 2 else variable.variable, variable.type)
-        return list(found.items())
-
-    def causality(self, instance: str, name: str) -> str:
-        variables = self.variables[instance]
-        return (variables[name] if name in variables else
-                next(v for v in variables.values() if getattr(v, "variable", None) == name)).causality
-
-    def outputs(self, instance: str) -> list[tuple[str, str]]:
-        """(name in the FMU, type) of every output of ``instance`` (whole variables for FMI 3.0)."""
-        found = {}
-        for name, variable in self.variables[instance].items():
-            if variable.causality == "output":
-                found.setdefault(name if self.fmi_version == 2 else variable.variable, variable.type)
-        return list(found.items())
+                key = name if self.fmi_version == 2 else variable.variable
+                found.setdefault(key, (key, variable.type, variable.causality))
+        return list(found.values())
 
     def copies(self) -> dict[str, tuple[Path, str]]:
         """instance -> (its FMU, the name of its configured copy): one copy per model and start values."""
@@ -189,11 +178,7 @@ class _Exported:
     def _starts(self, instance: str, values, table: str) -> str:
         """``resources/obsfmu_start.txt``: the slave's value reference of each start value."""
         lines = ["# obsfmu export: start values the binary sets at instantiation and reset (loader_common.h)"]
-        scalars = {}
-        for line in table.splitlines():
-            if line and not line.startswith("#"):
-                _, _, _, name, _, *references = line.split()
-                scalars[name] = [int(r) for r in references]
+        scalars = read_table(table)
         for name, kind, text in values:
             variable = self.variables[instance][name]
             reference = (variable.valueReference if self.fmi_version == 2
@@ -238,7 +223,8 @@ def _ssd(exported: _Exported, scenario: Scenario, step: float, stop_time: float,
     system_node = SubElement(root, "ssd:System", {"name": scenario.name, "description": scenario.description})
     wiring = exported.fmu_connections()
     connected = {end for pair in wiring for end in pair}
-    outputs = [(c.name, name, kind) for c in exported.system.components for name, kind in exported.outputs(c.name)]
+    outputs = [(c.name, name, kind) for c in exported.system.components
+               for name, kind, causality in exported.ports(c.name) if causality == "output"]
     system_connectors = SubElement(system_node, "ssd:Connectors")  # the system's outputs: every component output
     for instance, name, kind in outputs:
         connector = SubElement(system_connectors, "ssd:Connector", {"name": f"{instance}.{name}", "kind": "output"})
@@ -250,10 +236,9 @@ def _ssd(exported: _Exported, scenario: Scenario, step: float, stop_time: float,
             "name": component.name, "type": "application/x-fmu-sharedlibrary",
             "source": f"resources/{copies[component.name][1]}"})
         connectors = SubElement(node, "ssd:Connectors")
-        for name, kind in exported.ports(component.name):
-            if (component.name, name) in connected or (component.name, name) in {(i, n) for i, n, _ in outputs}:
-                connector = SubElement(connectors, "ssd:Connector", {"name": name, "kind": exported.causality(
-                    component.name, name)})
+        for name, kind, causality in exported.ports(component.name):
+            if causality == "output" or (component.name, name) in connected:
+                connector = SubElement(connectors, "ssd:Connector", {"name": name, "kind": causality})
                 SubElement(connector, f"ssc:{kind}")
         values = exported.bindings(component.name)
         if values:

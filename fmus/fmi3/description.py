@@ -29,7 +29,7 @@ from xml.etree.ElementTree import Element, SubElement, fromstring, tostring
 
 from ..definition import FmuDefinition, element_names
 
-__all__ = ["Variable", "variables", "describe", "CAPABILITIES"]
+__all__ = ["Variable", "variables", "describe", "table", "read_table", "CAPABILITIES"]
 
 _FMI2 = {"Real": "Float64", "Integer": "Int32"}
 _TABLE_TYPE = {"Float64": "F", "Int32": "I"}
@@ -151,6 +151,16 @@ def table(found: list[Variable]) -> str:
         lines.append(" ".join([str(v.value_reference), _TABLE_TYPE[v.type], _TABLE_CAUSALITY[v.causality], v.name,
                                str(len(v.scalars)), *map(str, v.scalars)]))
     return "\n".join(lines) + "\n"
+
+
+def read_table(text: str) -> dict[str, list[int]]:
+    """FMI 3.0 variable name -> the slave's value references, from :func:`table`'s text."""
+    scalars = {}
+    for line in text.splitlines():
+        if line and not line.startswith("#"):
+            _, _, _, name, _, *references = line.split()
+            scalars[name] = [int(r) for r in references]
+    return scalars
 
 
 def describe(definition: FmuDefinition, fmi2_description: bytes) -> tuple[bytes, str]:

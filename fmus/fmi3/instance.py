@@ -37,6 +37,7 @@ from fmpy import read_model_description
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi3 import FMU3Slave
 
+from ..master import SimulationError, _Instance
 from .elements import Element, elements
 
 __all__ = ["Fmi3Instance", "fmi_version_of"]
@@ -162,15 +163,18 @@ class _Facade:
         self._fmu.freeFMUState(state)
 
 
-class Fmi3Instance:
-    """An instantiated FMI 3.0 FMU, addressed by FMI 2.0 element names (see the module docstring)."""
+class Fmi3Instance(_Instance):
+    """An instantiated FMI 3.0 FMU, addressed by FMI 2.0 element names (see the module docstring).
 
-    def __init__(self, component, directory, log):
+    A subclass of the master's FMI 2.0 instance for its name handling (``variable``, ``port``: the
+    slots have FMI 2.0 element names); everything that calls the FMU is its own.
+    """
+
+    def __init__(self, component, directory, log):  # _Instance.__init__ (FMI 2.0) is not called
         self.name = component.name
         fmu = Path(component.fmu)
         self.description = read_model_description(str(fmu))
         if self.description.coSimulation is None:
-            from ..master import SimulationError
             raise SimulationError(f"{self.name}: {fmu} is not a co-simulation FMU")
         self.slots = [_Slot(name, k, element) for k, (name, element) in enumerate(elements(self.description).items())]
         self.variables = {slot.name: slot for slot in self.slots}
@@ -200,29 +204,6 @@ class Fmi3Instance:
         self._flags = (c_bool(), c_bool(), c_bool(), c_double())
         self.instantiated = False
 
-    # ------------------------------------------------------------------ names (as _Instance)
-    def variable(self, name: str) -> _Slot:
-        from ..master import SimulationError, _closest
-        try:
-            return self.variables[name]
-        except KeyError:
-            raise SimulationError(f"{self.name}.{name}: no such variable{_closest(name, self.variables)}") from None
-
-    def port(self, name: str, causality: str) -> list[str]:
-        """Element names of ``name`` (an element, a scalar or a whole array)."""
-        from ..master import SimulationError, _closest
-        if name in self.variables:
-            names = [name]
-        else:
-            names = [s.name for s in self.slots if s.element.variable == name]
-            if not names:
-                candidates = {s.element.variable for s in self.slots if s.causality == causality}
-                raise SimulationError(f"{self.name}.{name}: no such {causality}{_closest(name, candidates)}")
-        for n in names:
-            if self.variables[n].causality != causality:
-                raise SimulationError(f"{self.name}.{n}: is a {self.variables[n].causality}, expected an {causality}")
-        return names
-
     def required_inputs(self) -> list[int]:
         """FMI 3.0 value references of the inputs the master feeds (requiredIntermediateVariables)."""
         fed = {self.slots[vr].element.variable for vr in self.input_vrs}
@@ -231,7 +212,6 @@ class Fmi3Instance:
     # ------------------------------------------------------------------ values
     def set_value(self, name: str, value) -> None:
         """A start value, by element name: the element's variable is set whole."""
-        from ..master import SimulationError
         element = self.variable(name).element
         vr = [element.valueReference]
         if element.type == "Integer":

@@ -148,3 +148,13 @@ def parse_calls(stdout: str) -> dict[str, list[tuple[str, int, float, list[str]]
         elif line.startswith("case "):
             logs = []
     return cases
+
+
+def scenario_script(scenario, fmus: dict, root: Path, csv: Path, stop: float, step: float) -> list[str]:
+    """The importer's script of one Jacobi run of ``scenario`` with the FMUs ``fmus`` (model -> .fmu, FMI 2.0
+    or 3.0), unzipped under ``root``, written to ``csv``, then ``clear``."""
+    unzipped = [Unzipped.of(instance, fmus[model], Path(root) / instance) for instance, model, _ in scenario.components]
+    starts = {instance: start for instance, _, start in scenario.components}
+    return system_script(unzipped, scenario.connections, starts) + [
+        f"cosim jacobi {scenario.coupling} 0 {stop!r} {step!r} {csv}", "clear"]
+

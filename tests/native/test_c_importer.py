@@ -16,7 +16,7 @@ import pytest
 
 from fmus.native import OVERRIDE
 from fmus.scenarios import ensure_fmus, get, run
-from native_harness import Unzipped, read_csv, run as run_importer, system_script
+from native_harness import Unzipped, read_csv, run as run_importer, scenario_script
 
 #: scenario -> (stop time, communication step): short runs, the scenario's own coupling (linear)
 RUNS = {"ship": (0.2, 1e-4), "ltv-ls-bounded": (2.0, 1e-3)}
@@ -25,11 +25,7 @@ SEQUENCE = ["ship", "ltv-ls-bounded", "ship"]
 
 def scenario_lines(name, build_dir, work, csv):
     scenario, (stop, step) = get(name), RUNS[name]
-    fmus = ensure_fmus(scenario, build_dir)
-    unzipped = [Unzipped.of(instance, fmus[model], work / csv.stem) for instance, model, _ in scenario.components]
-    starts = {instance: start for instance, _, start in scenario.components}
-    return system_script(unzipped, scenario.connections, starts) + [
-        f"cosim jacobi {scenario.coupling} 0 {stop!r} {step!r} {csv}", "clear"]
+    return scenario_script(scenario, ensure_fmus(scenario, build_dir), work / csv.stem, csv, stop, step)
 
 
 @pytest.fixture(scope="module")

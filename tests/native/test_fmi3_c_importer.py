@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from fmus.scenarios import ensure_fmus, get, run
-from native_harness import Unzipped, read_csv, run as run_importer, system_script
+from native_harness import Unzipped, read_csv, run as run_importer, scenario_script
 
 #: (name, scenario, FMI 3.0 models, stop time, step): short runs at the scenario's coupling (linear)
 RUNS = [("ship3", "ship", {"ship_plant", "ship_observer", "ship_controller"}, 0.2, 1e-4),
@@ -25,11 +25,8 @@ RUNS = [("ship3", "ship", {"ship_plant", "ship_observer", "ship_controller"}, 0.
 def lines_of(name, scenario_name, fmi3_models, stop, step, build_dir, work):
     scenario = get(scenario_name)
     fmus2, fmus3 = ensure_fmus(scenario, build_dir), ensure_fmus(scenario, build_dir, fmi_version=3)
-    unzipped = [Unzipped.of(instance, (fmus3 if model in fmi3_models else fmus2)[model], work / name / instance)
-                for instance, model, _ in scenario.components]
-    starts = {instance: start for instance, _, start in scenario.components}
-    return system_script(unzipped, scenario.connections, starts) + [
-        f"cosim jacobi {scenario.coupling} 0 {stop!r} {step!r} {work / name}.csv", "clear"]
+    fmus = {model: (fmus3 if model in fmi3_models else fmus2)[model] for model in fmus2}
+    return scenario_script(scenario, fmus, work / name, work / f"{name}.csv", stop, step)
 
 
 @pytest.fixture(scope="module")
