@@ -22,7 +22,7 @@ import pytest
 from fmpy import read_model_description, simulate_fmu
 
 from fmus.export import export
-from fmus.master import SimulationError
+from fmus.master import Component, Session, SimulationError, System
 from fmus.scenarios import get, run
 
 SSD = "{http://ssp-standard.org/SSP1/SystemStructureDescription}"
@@ -95,6 +95,10 @@ def test_fmu_copies_carry_the_start_values(build_dir, tmp_path, fmi_version):
     result = simulate_fmu(str(copy), stop_time=1e-3, step_size=1e-3)
     x = result["x"][0] if fmi_version == 3 else [result["x[1]"][0], result["x[2]"][0]]
     assert list(x) == [2.0, 0.25]
+    with Session(System([Component("plant", copy)], []), echo_log=False) as session:  # the second run resets
+        runs = [session.run(1e-3, 1e-3) for _ in range(2)]
+    assert all(list(r.values[0][[r.columns.index("plant.x[1]"), r.columns.index("plant.x[2]")]]) == [2.0, 0.25]
+               for r in runs)
     starts = zipfile.ZipFile(copy).read("resources/obsfmu_start.txt").decode()
     assert "R 9 0.25" in starts and "I " in starts  # x0[2] is the slave's value reference 9 (FMI 2.0 numbering)
 

@@ -26,6 +26,7 @@
  *      (FMI 3.0: "if loggingOn == fmi3False ... logMessage is not called"), except the reason of a
  *      failed instantiation.
  */
+#define _GNU_SOURCE /* getline */
 #include "fmi3Functions.h"
 #include "loader_common.h"
 
@@ -116,9 +117,10 @@ static int read_table(Instance *c, const char *resources, char *message, size_t 
         snprintf(message, size, "cannot read %s: not an obsfmu FMI 3.0 FMU", path);
         return -1;
     }
-    char line[65536];
+    char *line = NULL;
+    size_t capacity = 0;
     int failed = 0;
-    while (!failed && fgets(line, sizeof line, file)) {
+    while (!failed && getline(&line, &capacity, file) != -1) { /* lines grow with the arrays (A of n x n) */
         if (line[0] == '#' || line[0] == '\n') continue;
         unsigned vr;
         char type, causality, name[256];
@@ -156,9 +158,11 @@ static int read_table(Instance *c, const char *resources, char *message, size_t 
     }
     fclose(file);
     if (failed || c->variable_count == 0) {
-        snprintf(message, size, "%s is damaged (line: %.200s)", path, line);
+        snprintf(message, size, "%s is damaged (line: %.200s)", path, line ? line : "");
+        free(line);
         return -1;
     }
+    free(line);
     size_t inputs = c->input_count ? c->input_count : 1;
     c->scratch = calloc(c->scalar_count ? c->scalar_count : 1, sizeof(fmi2ValueReference));
     c->ends = calloc(inputs, sizeof(double));
