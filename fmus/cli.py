@@ -8,6 +8,7 @@ from pathlib import Path
 
 from observers.checks import ParameterError
 
+from .campaign import cli as campaign_cli
 from .master import COUPLINGS, ORDERS, SimulationError
 
 DEFAULT_BUILD = Path("build")
@@ -160,6 +161,7 @@ def parser() -> argparse.ArgumentParser:
     everything.add_argument("--out", default="results", help="directory for CSV, PNG and summaries")
     everything.add_argument("--build-dir", default=str(DEFAULT_BUILD))
     everything.set_defaults(func=cmd_all)
+    campaign_cli.add_parser(commands)  # obsfmu sweep: fmus/campaign/cli.py
     return main
 
 

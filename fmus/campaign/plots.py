@@ -1,0 +1,120 @@
+"""Figures of a campaign's table: convergence-time distribution, final error against each varied input.
+
+Each figure is written as PNG and SVG.  Failed samples (status ``error``,
+``timeout`` or ``crashed``) have no error value: they are drawn as red
+crosses on the top edge of the error panels at their input values.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+
+from .design import Plan
+
+__all__ = ["plot_convergence", "plot_error_vs_inputs", "write_plots"]
+
+
+def _pyplot():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt
+
+
+def _save(fig, stem: Path) -> list[Path]:
+    paths = [stem.with_suffix(".png"), stem.with_suffix(".svg")]
+    fig.savefig(paths[0], dpi=120)
+    fig.savefig(paths[1])
+    return paths
+
+
+def _column(table: pa.Table, name: str) -> np.ndarray:
+    if name not in table.column_names:
+        return np.full(table.num_rows, np.nan)
+    return np.array([np.nan if v is None else v for v in table[name].to_pylist()], dtype=float)
+
+
+def plot_convergence(plan: Plan, table: pa.Table, stem: Path) -> list[Path]:
+    """Histogram of the convergence time (converged samples) and its empirical CDF over all samples."""
+    plt = _pyplot()
+    converged = np.array(table["converged"].to_pylist() if table.num_rows else [], dtype=bool)
+    times = np.sort(_column(table, "convergence_time")[converged])
+    total = table.num_rows
+    unit = plan.time_unit
+    stop = plan.settings["stop_time"] / (plan.settings["step"] if unit == "samples" else 1.0)
+    fig, (hist, cdf) = plt.subplots(1, 2, figsize=(11, 4.2))
+    label = f"convergence time, {unit}"
+    if times.size:
+        hist.hist(times, bins=min(30, max(5, int(np.sqrt(times.size)) + 1)), color="tab:blue", edgecolor="white")
+    hist.set_xlabel(label)
+    hist.set_ylabel("converged samples (count)")
+    hist.set_title(f"{times.size} of {total} samples converged", fontsize=10)
+    steps = np.concatenate([[0.0], times, [stop]])
+    fractions = np.concatenate([[0.0], np.arange(1, times.size + 1) / max(total, 1), [times.size / max(total, 1)]])
+    cdf.step(steps, fractions, where="post", color="tab:blue")
+    cdf.axhline(times.size / max(total, 1), color="k", ls=":", lw=1,
+                label=f"converged by the stop time: {100 * times.size / max(total, 1):.1f} %")
+    cdf.set_xlim(0, stop)
+    cdf.set_ylim(0, 1.02)
+    cdf.set_xlabel(label)
+    cdf.set_ylabel("fraction of all samples converged")
+    cdf.set_title("empirical CDF (failed and unconverged samples count as never)", fontsize=10)
+    cdf.legend(fontsize=8, loc="lower right")
+    for ax in (hist, cdf):
+        ax.grid(True, alpha=0.4)
+    fig.suptitle(f"{plan.scenario.name}: {plan.measure.time_label}", fontsize=10)
+    fig.tight_layout()
+    paths = _save(fig, stem)
+    plt.close(fig)
+    return paths
+
+
+def plot_error_vs_inputs(plan: Plan, table: pa.Table, stem: Path) -> list[Path]:
+    """One panel per varied input: final error (log) against its value; unconverged and failed marked."""
+    plt = _pyplot()
+    names = list(plan.variables)
+    columns = min(len(names), 2)
+    rows_count = int(np.ceil(len(names) / columns))
+    fig, axes = plt.subplots(rows_count, columns, figsize=(5.6 * columns, 3.8 * rows_count), squeeze=False)
+    status = np.array(table["status"].to_pylist() if table.num_rows else [], dtype=object)
+    converged = np.array(table["converged"].to_pylist() if table.num_rows else [], dtype=bool)
+    error = _column(table, "final_error")
+    ok = status == "ok"
+    positive = error[ok & np.isfinite(error) & (error > 0)]
+    floor = positive.min() / 10 if positive.size else 1e-16
+    shown = np.maximum(error, floor)
+    top = (positive.max() * 10) if positive.size else 1.0
+    for ax, name in zip(axes.flat, names):
+        x = _column(table, name)
+        unit = plan.variables[name].unit
+        groups = ((ok & converged, "o", "tab:blue", "converged"),
+                  (ok & ~converged, "s", "tab:orange", "not converged"))
+        for mask, marker, color, text in groups:
+            if mask.any():
+                ax.semilogy(x[mask], shown[mask], marker, color=color, ms=4, ls="none", label=f"{text} ({mask.sum()})")
+        failed = ~ok
+        if failed.any():
+            ax.semilogy(x[failed], np.full(failed.sum(), top), "x", color="red", ms=7, ls="none",
+                        label=f"failed: error/timeout ({failed.sum()})")
+        ax.set_xlabel(f"{name}, {unit}" if unit else f"{name} (no unit declared)")
+        ax.set_ylabel(plan.measure.error_label, fontsize=8)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7, loc="best")
+    for ax in list(axes.flat)[len(names):]:
+        ax.set_visible(False)
+    fig.suptitle(f"{plan.scenario.name}: final error against the varied inputs ({table.num_rows} samples)", fontsize=10)
+    fig.tight_layout()
+    paths = _save(fig, stem)
+    plt.close(fig)
+    return paths
+
+
+def write_plots(plan: Plan, table: pa.Table, out: Path) -> list[Path]:
+    """``OUT/convergence.{png,svg}`` and ``OUT/error_vs_inputs.{png,svg}``."""
+    if table.num_rows == 0:
+        return []
+    out = Path(out)
+    return plot_convergence(plan, table, out / "convergence") + plot_error_vs_inputs(plan, table, out / "error_vs_inputs")
