@@ -74,7 +74,7 @@ def summary_text(plan: Plan, table: pa.Table) -> str:
     lines.append(f"{plan.measure.error_label} (finished samples): {_quantiles(finished[np.isfinite(finished)], '.3g')}")
     failed = [row for row in rows if row["status"] != "ok"]
     if failed:
-        reasons = Counter(f"{row['status']}: {row['reason'][:160]}" for row in failed)
+        reasons = Counter(f"{row['status']}: {row['reason'][:400]}" for row in failed)
         lines.append(f"failures: {len(failed)}; most frequent reasons:")
         lines += [f"  {count} x {reason}" for reason, count in reasons.most_common(3)]
     walls = np.array([row["wall_time"] for row in rows if row.get("wall_time") is not None
