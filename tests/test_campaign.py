@@ -133,7 +133,7 @@ def test_a_campaign_file_gives_the_same_samples_as_the_command_line(build_dir, t
     path = tmp_path / "study.toml"
     path.write_text('scenario = "discrete-gpebo"\nsamples = 3\nseed = 5\n[vary]\n"plant.x0[1]" = "uniform(-1, 1)"\n'
                     '"source.amplitude[1]" = [0, 1.5]\n[set]\n"plant.x0[2]" = 0.25\n')
-    from_file = Campaign.from_toml(path, build_dir=build_dir).plan()
+    from_file = Campaign.from_toml(path, build_dir=build_dir, vary={}, set={}, seed=None).plan()   # as the CLI
     direct = Campaign("discrete-gpebo", vary={"plant.x0[1]": "uniform(-1,1)", "source.amplitude[1]": "[0, 1.5]"},
                       samples=3, seed=5, set={"plant.x0[2]": 0.25}, build_dir=build_dir).plan()
     assert [s.id for s in from_file.samples] == [s.id for s in direct.samples]

@@ -12,7 +12,6 @@ Short runs: ``ltv-ls-bounded`` for 0.3-1 s of model time (1e-3 s steps).
 
 from __future__ import annotations
 
-import logging
 import os
 import signal
 import subprocess
@@ -24,7 +23,7 @@ import pytest
 
 from fmus import cli
 from fmus.campaign.design import Campaign
-from fmus.campaign.runner import run_campaign
+from fmus.campaign.runner import local_cluster, run_campaign
 from fmus.campaign.store import load_rows
 from fmus.result import Result
 from fmus.scenarios import get
@@ -36,9 +35,7 @@ OBSFMU = [sys.executable, "-m", "fmus.cli"]
 
 @pytest.fixture(scope="module")
 def client():
-    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
-                                       silence_logs=logging.ERROR)
-    with cluster, distributed.Client(cluster) as connected:
+    with local_cluster(2) as cluster, distributed.Client(cluster) as connected:
         yield connected
 
 
@@ -107,7 +104,7 @@ def test_an_interrupted_sweep_resumes_with_only_the_missing_samples(client, buil
     second = subprocess.run(command, capture_output=True, text=True, timeout=300,
                             cwd=Path(__file__).resolve().parents[1])
     assert second.returncode == 0, second.stderr
-    assert f"{len(kept)} of 10 samples already in" in second.stderr
+    assert f"{len(kept)} of 10 samples already stored; computing {10 - len(kept)}" in second.stderr
     rows = load_rows(out).to_pylist()
     assert len(rows) == 10 and all(row["status"] == "ok" for row in rows)
     invocations = {row["invocation"] for row in rows if row["sample_id"] not in kept}

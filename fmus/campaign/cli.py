@@ -67,6 +67,8 @@ def add_parser(subcommands) -> argparse.ArgumentParser:
     sweep.add_argument("--error-metric", metavar="NAME[,NAME]", help="summary metric(s) whose max |.| is the "
                        "final error (default: the scenario's)")
     sweep.add_argument("--retry-failed", action="store_true", help="also recompute stored samples that failed")
+    sweep.add_argument("--report-only", action="store_true", help="compute nothing: table, summary and figures "
+                       "from the samples stored in --out (also those computed with FMUs built before a change)")
     sweep.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
                        help="progress bar on stderr (default: only on a terminal)")
     sweep.add_argument("--no-plots", action="store_true", help="do not write the figures")
@@ -108,7 +110,6 @@ def campaign_from_args(args):
 
 
 def cmd_sweep(args) -> int:
-    from .plots import write_plots  # noqa: F401 -- fail early if matplotlib is missing
     from .runner import run_campaign
     from .table import summary_text
 
@@ -120,7 +121,8 @@ def cmd_sweep(args) -> int:
           f"results in {out}", flush=True)
     try:
         table = run_campaign(plan, workers=args.workers, scheduler=args.scheduler, out=out, progress=args.progress,
-                             retry_failed=args.retry_failed, plots=not args.no_plots)
+                             retry_failed=args.retry_failed, report_only=args.report_only,
+                             plots=not args.no_plots)
     except KeyboardInterrupt:
         print(f"\ninterrupted: every finished sample is in {out / 'samples'}; rerun the same command to compute "
               f"the rest", file=sys.stderr)

@@ -21,13 +21,12 @@ import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
 
 from .. import scenarios
 from ..master import COUPLINGS, ORDERS
 from .errors import CampaignError
 from .measures import Measure, measure_for
-from .spec import Choice, Distribution, Grid, Spec, parse_spec, rng_for, spec_from_value
+from .spec import Choice, Distribution, Grid, Spec, rng_for, spec_from_value
 
 __all__ = ["Campaign", "Plan", "Sample", "Variable", "fmu_fingerprint", "MAX_SAMPLES"]
 
@@ -176,10 +175,9 @@ class Campaign:
         for key in ("vary", "set"):
             if key in data and not isinstance(data[key], dict):
                 raise CampaignError(f"--config {path}: [{key}] must be a table of \"instance.variable\" = ...")
-        merged = {**data, **{k: v for k, v in overrides.items() if v is not None}}
+        merged = {**data, **{k: v for k, v in overrides.items() if v is not None and k not in ("vary", "set")}}
         for key in ("vary", "set"):   # command-line entries add to (or replace) the file's
-            if key in data and key in overrides and overrides[key]:
-                merged[key] = {**data[key], **overrides[key]}
+            merged[key] = {**data.get(key, {}), **(overrides.get(key) or {})}
         if "scenario" not in merged:
             raise CampaignError(f"--config {path}: no scenario (scenario = \"name\" or the SCENARIO argument)")
         return cls(**merged)

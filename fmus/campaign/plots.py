@@ -24,10 +24,15 @@ def _pyplot():
     return plt
 
 
-def _save(fig, stem: Path) -> list[Path]:
+def _save(fig, title: str, stem: Path) -> list[Path]:
+    """Title, layout, ``stem.png`` + ``stem.svg``, close."""
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
     paths = [stem.with_suffix(".png"), stem.with_suffix(".svg")]
     fig.savefig(paths[0], dpi=120)
     fig.savefig(paths[1])
+    import matplotlib.pyplot as plt
+    plt.close(fig)
     return paths
 
 
@@ -65,11 +70,7 @@ def plot_convergence(plan: Plan, table: pa.Table, stem: Path) -> list[Path]:
     cdf.legend(fontsize=8, loc="lower right")
     for ax in (hist, cdf):
         ax.grid(True, alpha=0.4)
-    fig.suptitle(f"{plan.scenario.name}: {plan.measure.time_label}", fontsize=10)
-    fig.tight_layout()
-    paths = _save(fig, stem)
-    plt.close(fig)
-    return paths
+    return _save(fig, f"{plan.scenario.name}: {plan.measure.time_label}", stem)
 
 
 def plot_error_vs_inputs(plan: Plan, table: pa.Table, stem: Path) -> list[Path]:
@@ -105,11 +106,7 @@ def plot_error_vs_inputs(plan: Plan, table: pa.Table, stem: Path) -> list[Path]:
         ax.legend(fontsize=7, loc="best")
     for ax in list(axes.flat)[len(names):]:
         ax.set_visible(False)
-    fig.suptitle(f"{plan.scenario.name}: final error against the varied inputs ({table.num_rows} samples)", fontsize=10)
-    fig.tight_layout()
-    paths = _save(fig, stem)
-    plt.close(fig)
-    return paths
+    return _save(fig, f"{plan.scenario.name}: final error against the varied inputs ({table.num_rows} samples)", stem)
 
 
 def write_plots(plan: Plan, table: pa.Table, out: Path) -> list[Path]:

@@ -20,6 +20,7 @@ import json
 import logging
 import os
 import sys
+import time
 import uuid
 from contextlib import ExitStack, contextmanager
 from datetime import datetime, timezone
@@ -35,7 +36,7 @@ from .store import Store, rows_to_table
 from .table import campaign_table, measured, summary_text
 from .worker import FmuPlugin, Task, plugin_name, run_sample
 
-__all__ = ["run_campaign", "default_workers", "ALLOWED_FAILURES", "RETRIES"]
+__all__ = ["run_campaign", "local_cluster", "default_workers", "ALLOWED_FAILURES", "RETRIES"]
 
 ALLOWED_FAILURES = 3   #: a task may lose this many workers before it is recorded as "crashed"
 RETRIES = 2            #: retries of a task that raised (run_sample catches the sample's own failures)
@@ -55,18 +56,25 @@ def _client(workers: int | None, scheduler: str | None, client):
     if client is not None:
         yield client
         return
-    import dask
-    from distributed import Client, LocalCluster
+    from distributed import Client
 
     if scheduler:
         with Client(scheduler) as connected:
             yield connected
         return
-    with dask.config.set({"distributed.scheduler.allowed-failures": ALLOWED_FAILURES}):
-        cluster = LocalCluster(n_workers=workers or default_workers(), threads_per_worker=1, processes=True,
-                               dashboard_address=None, silence_logs=logging.ERROR)
-    with cluster, Client(cluster) as local:
+    with local_cluster(workers or default_workers()) as cluster, Client(cluster) as local:
         yield local
+
+
+def local_cluster(workers: int):
+    """A LocalCluster of ``workers`` single-threaded worker processes (each keeps its own Sessions), the
+    HTTP server on a free port, quiet logs, and ``ALLOWED_FAILURES`` lost workers allowed per task."""
+    import dask
+    from distributed import LocalCluster
+
+    with dask.config.set({"distributed.scheduler.allowed-failures": ALLOWED_FAILURES}):
+        return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0",
+                            silence_logs=logging.ERROR)
 
 
 def _tasks(plan: Plan, samples) -> list[Task]:
@@ -96,18 +104,29 @@ def _manifest(plan: Plan) -> dict:
                         "time_unit": plan.time_unit}}
 
 
-def _pending(plan: Plan, stored: pa.Table | None, retry_failed: bool) -> list:
-    done = set()
+def _pending(plan: Plan, stored: pa.Table | None, retry_failed: bool, log) -> list:
+    """The samples without a stored row computed with the plan's FMUs (or only a failed one, to retry)."""
+    done, stale = set(), set()
     if stored is not None:
         for row in stored.select(["sample_id", "status", "fmu_set"]).to_pylist():
-            if row["fmu_set"] == plan.fmu_set and (row["status"] == "ok" or not retry_failed):
+            if row["fmu_set"] != plan.fmu_set:
+                stale.add(row["sample_id"])
+            elif row["status"] == "ok" or not retry_failed:
                 done.add(row["sample_id"])
-    return [sample for sample in plan.samples if sample.id not in done]
+    pending = [sample for sample in plan.samples if sample.id not in done]
+    if done:
+        log(f"{len(plan.samples) - len(pending)} of {len(plan.samples)} samples already stored; "
+            f"computing {len(pending)}")
+    again = sum(sample.id in stale for sample in pending)
+    if again:
+        log(f"{again} stored samples were computed with other FMUs (rebuilt since): computing them again")
+    return pending
 
 
 def run_campaign(campaign: Campaign | Plan, *, workers: int | None = None, scheduler: str | None = None,
                  client=None, out: Path | str | None = None, progress: bool | None = None,
-                 retry_failed: bool = False, plots: bool = True, on_row=None, log=None) -> pa.Table:
+                 retry_failed: bool = False, report_only: bool = False, plots: bool = True, on_row=None,
+                 log=None) -> pa.Table:
     """Run ``campaign`` (or its plan) and return its table (one row per sample, in sample order).
 
     Parameters
@@ -126,6 +145,9 @@ def run_campaign(campaign: Campaign | Plan, *, workers: int | None = None, sched
         Progress bar on stderr (default: when stderr is a terminal).
     retry_failed : bool
         Also recompute stored samples whose status is not ``ok``.
+    report_only : bool
+        Compute nothing: the table, summary and figures of the rows stored in ``out``, also rows
+        computed with other FMUs (e.g. rebuilt since, after a change of the project's code).
     on_row : callable, optional
         Called with each new row once it is stored (e.g. for live monitoring).
     log : callable, optional
@@ -134,35 +156,41 @@ def run_campaign(campaign: Campaign | Plan, *, workers: int | None = None, sched
     log = log or (lambda text: print(text, file=sys.stderr))
     if sum(x is not None for x in (workers, scheduler, client)) > 1:
         raise CampaignError("workers, scheduler, client: give at most one")
+    if report_only and out is None:
+        raise CampaignError("report_only: needs the campaign directory (out)")
     plan = campaign if isinstance(campaign, Plan) else campaign.plan()
     store = Store(out) if out is not None else None
-    stored = store.read() if store else None
-    pending = _pending(plan, stored, retry_failed)
-    if store:
-        store.out.mkdir(parents=True, exist_ok=True)
-        (store.out / "campaign.json").write_text(json.dumps(_manifest(plan), indent=2) + "\n")
-    before = len(plan.samples) - len(pending)
-    if before:
-        log(f"{before} of {len(plan.samples)} samples already in {store.directory}; computing {len(pending)}")
     memory: list[dict] = []
+    if store:
+        store.write_text("campaign.json", json.dumps(_manifest(plan), indent=2) + "\n")
+    pending = [] if report_only else _pending(plan, store.read() if store else None, retry_failed, log)
     if pending:
+        before = len(plan.samples) - len(pending)
         bar = Progress(len(plan.samples), before, sys.stderr.isatty() if progress is None else progress)
         try:
             _compute(plan, _tasks(plan, pending), workers, scheduler, client, store, memory, bar, on_row)
         finally:
             bar.close()
-    if store:
-        store.compact()
-        stored = store.read()
-    else:
-        stored = rows_to_table(memory) if memory else None
-    table = campaign_table(plan, stored)
-    if store:
-        store.write_csv(table)
-        (store.out / "summary.txt").write_text(summary_text(plan, table) + "\n")
-        if plots:
-            write_plots(plan, table, store.out)
+    if store is None:
+        return campaign_table(plan, rows_to_table(memory) if memory else None)
+    store.compact()
+    table = campaign_table(plan, store.read(), any_fmus=report_only)
+    _report(plan, store, table, plots, report_only, log)
     return table
+
+
+def _report(plan: Plan, store: Store, table: pa.Table, plots: bool, report_only: bool, log) -> None:
+    """CSV, summary.txt and figures of the campaign's table."""
+    if report_only:
+        log(f"report only: {table.num_rows} of {len(plan.samples)} samples are stored in {store.directory}")
+        stale = sum(fmu_set != plan.fmu_set for fmu_set in table["fmu_set"].to_pylist()) if table.num_rows else 0
+        if stale:
+            log(f"{stale} of the {table.num_rows} rows were computed with other FMUs than the current ones "
+                f"({plan.fmu_set}); run without --report-only to compute them again")
+    store.write_csv(table)
+    store.write_text("summary.txt", summary_text(plan, table) + "\n")
+    if plots:
+        write_plots(plan, table, store.out)
 
 
 def _compute(plan: Plan, tasks: list[Task], workers, scheduler, client, store: Store | None, memory: list,
@@ -182,7 +210,7 @@ def _compute(plan: Plan, tasks: list[Task], workers, scheduler, client, store: S
                                         pure=False, retries=RETRIES)
             futures[future.key] = (future, task)
         try:
-            for batch in as_completed([f for f, _ in futures.values()]).batches():
+            for batch in _batches(as_completed([f for f, _ in futures.values()]), bar):
                 rows = [_row(future, futures[future.key][1], invocation) for future in batch]
                 try:   # a metric the measure names but the scenario does not report stops the campaign
                     rows = [measured(row, plan.measure) for row in rows]
@@ -201,6 +229,17 @@ def _compute(plan: Plan, tasks: list[Task], workers, scheduler, client, store: S
         finally:
             for future, _ in futures.values():   # interrupted: do not leave work behind on a shared cluster
                 future.cancel()
+
+
+def _batches(completed, bar: Progress, poll: float = 0.2):
+    """The finished futures, batch by batch; the progress bar (elapsed, ETA) is redrawn while waiting."""
+    while not completed.is_empty():
+        batch = completed.next_batch(block=False)
+        if batch:
+            yield batch
+        else:
+            bar.update()
+            time.sleep(poll)
 
 
 def _row(future, task: Task, invocation: str) -> dict:

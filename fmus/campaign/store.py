@@ -107,6 +107,12 @@ class Store:
             part.unlink(missing_ok=True)
         _fsync_directory(self.directory)
 
+    def write_text(self, name: str, text: str) -> Path:
+        self.out.mkdir(parents=True, exist_ok=True)
+        path = self.out / name
+        _atomic(path, lambda p: p.write_text(text))
+        return path
+
     def write_csv(self, table: pa.Table, path: Path | None = None) -> Path:
         path = Path(path or self.out / "samples.csv")
         _atomic(path, lambda p: pacsv.write_csv(table, p))

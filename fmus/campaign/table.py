@@ -28,13 +28,14 @@ def measured(row: dict, measure: Measure) -> dict:
     return {**row, "converged": bool(math.isfinite(time)), "convergence_time": time, "final_error": error}
 
 
-def campaign_table(plan: Plan, stored: pa.Table | None) -> pa.Table:
-    """The rows of ``plan``'s samples computed with its FMUs, in sample order, measured with its measure."""
+def campaign_table(plan: Plan, stored: pa.Table | None, any_fmus: bool = False) -> pa.Table:
+    """The rows of ``plan``'s samples computed with its FMUs (``any_fmus``: with any), in sample order,
+    measured with its measure."""
     if stored is None:
         return rows_to_table([])
     wanted = {sample.id: k for k, sample in enumerate(plan.samples)}
     rows = [row for row in stored.to_pylist()
-            if row["sample_id"] in wanted and row.get("fmu_set") == plan.fmu_set]
+            if row["sample_id"] in wanted and (any_fmus or row.get("fmu_set") == plan.fmu_set)]
     rows.sort(key=lambda row: wanted[row["sample_id"]])
     rows = [measured({k: v for k, v in row.items() if v is not None}, plan.measure) for row in rows]
     inputs = list(plan.campaign.specs)   # the id hashes the input names: a selected row has exactly these
