@@ -197,3 +197,35 @@ def test_the_progress_bar_shows_done_total_failures_and_eta():
     quiet = io.StringIO()
     Progress(total=10, before=0, enabled=False, stream=quiet).update(done=1)
     assert quiet.getvalue() == ""
+
+
+# -- table, summary and figures from stored rows (--report-only: nothing is computed, no cluster)
+
+def test_report_only_builds_the_table_summary_and_figures_from_stored_rows(build_dir, tmp_path):
+    from fmus.campaign.runner import run_campaign
+
+    plan = _gpebo(build_dir, vary={"source.amplitude[1]": "[0, 1, 2]"}).plan()
+    a, b, c = plan.samples
+    metrics = {"gamma_samples_to_tolerance": 12.0, "final_state_error": 3e-12}
+    Store(tmp_path).append([
+        {"sample_id": c.id, "source.amplitude[1]": 2.0, "status": "error", "reason": "observer: doStep failed",
+         "fmu_set": "older"},
+        {"sample_id": a.id, "source.amplitude[1]": 0.0, "status": "ok", "fmu_set": "older",
+         "state_samples_to_tolerance": 17.0, **metrics},
+        {"sample_id": b.id, "source.amplitude[1]": 1.0, "status": "ok", "fmu_set": "older",
+         "state_samples_to_tolerance": math.inf, **metrics},
+        {"sample_id": "not-this-campaign", "status": "ok", "fmu_set": "older"}])
+    notes = []
+    table = run_campaign(plan, out=tmp_path, report_only=True, log=notes.append)
+    rows = table.to_pylist()
+    assert [row["sample_id"] for row in rows] == [a.id, b.id, c.id]
+    assert [row["converged"] for row in rows] == [True, False, False]
+    assert rows[0]["convergence_time"] == 17.0 and rows[1]["convergence_time"] == math.inf
+    assert rows[0]["final_error"] == 3e-12 and math.isnan(rows[2]["final_error"])
+    assert any("3 of the 3 rows were computed with other FMUs" in note for note in notes)
+    summary = (tmp_path / "summary.txt").read_text()
+    assert "3 of 3 samples done (2 ok, 1 error)" in summary and "converged: 1 of 3 (33.3 %)" in summary
+    assert "1 x error: observer: doStep failed" in summary
+    assert (tmp_path / "samples.csv").read_text().count("\n") == 4
+    for name in [f"{stem}.{ext}" for stem in ("convergence", "error_vs_inputs", "convergence_vs_inputs") for ext in ("png", "svg")]:
+        assert (tmp_path / name).stat().st_size > 1000

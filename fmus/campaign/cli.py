@@ -130,6 +130,6 @@ def cmd_sweep(args) -> int:
     print(summary_text(plan, table))
     written = [out / "samples", out / "samples.csv", out / "summary.txt"]
     if not args.no_plots and table.num_rows:
-        written += [out / "convergence.png", out / "error_vs_inputs.png"]
+        written += [out / f"{name}.png" for name in ("convergence", "error_vs_inputs", "convergence_vs_inputs")]
     print("wrote " + ", ".join(str(p) for p in written) + " (figures also as .svg)" * (not args.no_plots))
     return 0

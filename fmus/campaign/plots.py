@@ -1,8 +1,10 @@
-"""Figures of a campaign's table: convergence-time distribution, final error against each varied input.
+"""Figures of a campaign's table: convergence-time distribution; final error and convergence time
+against each varied input.
 
 Each figure is written as PNG and SVG.  Failed samples (status ``error``,
 ``timeout`` or ``crashed``) have no error value: they are drawn as red
-crosses on the top edge of the error panels at their input values.
+crosses on the top edge of the panels at their input values (so are unconverged samples in the
+convergence-time panels: their time is infinite).
 """
 
 from __future__ import annotations
@@ -14,7 +16,7 @@ import pyarrow as pa
 
 from .design import Plan
 
-__all__ = ["plot_convergence", "plot_error_vs_inputs", "write_plots"]
+__all__ = ["plot_convergence", "plot_vs_inputs", "write_plots"]
 
 
 def _pyplot():
@@ -27,7 +29,6 @@ def _pyplot():
 def _save(fig, title: str, stem: Path) -> list[Path]:
     """Title, layout, ``stem.png`` + ``stem.svg``, close."""
     fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
     paths = [stem.with_suffix(".png"), stem.with_suffix(".svg")]
     fig.savefig(paths[0], dpi=120)
     fig.savefig(paths[1])
@@ -42,6 +43,11 @@ def _column(table: pa.Table, name: str) -> np.ndarray:
     return np.array([np.nan if v is None else v for v in table[name].to_pylist()], dtype=float)
 
 
+def _stop(plan: Plan) -> float:
+    """The stop time in the unit of the convergence time."""
+    return plan.settings["stop_time"] / (plan.settings["step"] if plan.time_unit == "samples" else 1.0)
+
+
 def plot_convergence(plan: Plan, table: pa.Table, stem: Path) -> list[Path]:
     """Histogram of the convergence time (converged samples) and its empirical CDF over all samples."""
     plt = _pyplot()
@@ -49,8 +55,8 @@ def plot_convergence(plan: Plan, table: pa.Table, stem: Path) -> list[Path]:
     times = np.sort(_column(table, "convergence_time")[converged])
     total = table.num_rows
     unit = plan.time_unit
-    stop = plan.settings["stop_time"] / (plan.settings["step"] if unit == "samples" else 1.0)
-    fig, (hist, cdf) = plt.subplots(1, 2, figsize=(11, 4.2))
+    stop = _stop(plan)
+    fig, (hist, cdf) = plt.subplots(1, 2, figsize=(11, 4.2), layout="constrained")
     label = f"convergence time, {unit}"
     if times.size:
         hist.hist(times, bins=min(30, max(5, int(np.sqrt(times.size)) + 1)), color="tab:blue", edgecolor="white")
@@ -73,45 +79,66 @@ def plot_convergence(plan: Plan, table: pa.Table, stem: Path) -> list[Path]:
     return _save(fig, f"{plan.scenario.name}: {plan.measure.time_label}", stem)
 
 
-def plot_error_vs_inputs(plan: Plan, table: pa.Table, stem: Path) -> list[Path]:
-    """One panel per varied input: final error (log) against its value; unconverged and failed marked."""
+def _decades(ax, x: np.ndarray) -> None:
+    """A logarithmic x axis for non-negative inputs that span two decades or more (symlog when 0 is one)."""
+    finite = x[np.isfinite(x)]
+    positive = finite[finite > 0]
+    if positive.size and np.all(finite >= 0) and positive.max() >= 100 * positive.min():
+        if np.any(finite == 0):
+            ax.set_xscale("symlog", linthresh=positive.min())
+            ax.set_xlim(left=-positive.min() / 3)
+        else:
+            ax.set_xscale("log")
+
+
+def plot_vs_inputs(plan: Plan, table: pa.Table, stem: Path, column: str, label: str, log: bool,
+                   ceiling: float | None = None) -> list[Path]:
+    """One panel per varied input: ``column`` against the input's value, converged / not converged /
+    failed marked; samples without a value to draw (failed, never converged) sit on the top edge
+    (``ceiling``, default: above the largest value)."""
     plt = _pyplot()
     names = list(plan.variables)
     columns = min(len(names), 2)
     rows_count = int(np.ceil(len(names) / columns))
-    fig, axes = plt.subplots(rows_count, columns, figsize=(5.6 * columns, 3.8 * rows_count), squeeze=False)
-    status = np.array(table["status"].to_pylist() if table.num_rows else [], dtype=object)
-    converged = np.array(table["converged"].to_pylist() if table.num_rows else [], dtype=bool)
-    error = _column(table, "final_error")
-    ok = status == "ok"
-    positive = error[ok & np.isfinite(error) & (error > 0)]
-    floor = positive.min() / 10 if positive.size else 1e-16
-    shown = np.maximum(error, floor)
-    top = (positive.max() * 10) if positive.size else 1.0
+    fig, axes = plt.subplots(rows_count, columns, figsize=(5.6 * columns, 3.8 * rows_count), squeeze=False,
+                             layout="constrained")
+    ok = np.array(table["status"].to_pylist(), dtype=object) == "ok"
+    converged = np.array(table["converged"].to_pylist(), dtype=bool)
+    values = _column(table, column)
+    drawable = ok & np.isfinite(values) & ((values > 0) if log else True)
+    known = values[drawable]
+    top = ceiling or (known.max() * (10 if log else 1.1) if known.size else 1.0) or 1.0
+    shown = np.where(drawable, values, top)
+    groups = ((ok & converged, "o", "tab:blue", "converged"), (ok & ~converged, "s", "tab:orange", "not converged"),
+              (~ok, "x", "red", "failed: error/timeout"))
     for ax, name in zip(axes.flat, names):
         x = _column(table, name)
-        unit = plan.variables[name].unit
-        groups = ((ok & converged, "o", "tab:blue", "converged"),
-                  (ok & ~converged, "s", "tab:orange", "not converged"))
         for mask, marker, color, text in groups:
             if mask.any():
-                ax.semilogy(x[mask], shown[mask], marker, color=color, ms=4, ls="none", label=f"{text} ({mask.sum()})")
-        failed = ~ok
-        if failed.any():
-            ax.semilogy(x[failed], np.full(failed.sum(), top), "x", color="red", ms=7, ls="none",
-                        label=f"failed: error/timeout ({failed.sum()})")
+                edge = ", top edge" if np.any(mask & ~drawable) else ""
+                ax.plot(x[mask], shown[mask], marker, color=color, ms=6 if marker == "x" else 4, ls="none",
+                        label=f"{text} ({mask.sum()}{edge})")
+        if log:
+            ax.set_yscale("log")
+        _decades(ax, x)
+        unit = plan.variables[name].unit
         ax.set_xlabel(f"{name}, {unit}" if unit else f"{name} (no unit declared)")
-        ax.set_ylabel(plan.measure.error_label, fontsize=8)
+        ax.set_ylabel(label, fontsize=8)
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7, loc="best")
     for ax in list(axes.flat)[len(names):]:
         ax.set_visible(False)
-    return _save(fig, f"{plan.scenario.name}: final error against the varied inputs ({table.num_rows} samples)", stem)
+    what = "final error" if column == "final_error" else column.replace("_", " ")
+    return _save(fig, f"{plan.scenario.name}: {what} against the varied inputs ({table.num_rows} samples)", stem)
 
 
 def write_plots(plan: Plan, table: pa.Table, out: Path) -> list[Path]:
-    """``OUT/convergence.{png,svg}`` and ``OUT/error_vs_inputs.{png,svg}``."""
+    """``OUT/convergence``, ``OUT/error_vs_inputs`` and ``OUT/convergence_vs_inputs``, each ``.png`` + ``.svg``."""
     if table.num_rows == 0:
         return []
     out = Path(out)
-    return plot_convergence(plan, table, out / "convergence") + plot_error_vs_inputs(plan, table, out / "error_vs_inputs")
+    return (plot_convergence(plan, table, out / "convergence")
+            + plot_vs_inputs(plan, table, out / "error_vs_inputs", "final_error", plan.measure.error_label, log=True)
+            + plot_vs_inputs(plan, table, out / "convergence_vs_inputs", "convergence_time",
+                             f"convergence time, {plan.time_unit} (top edge: the stop time)", log=False,
+                             ceiling=_stop(plan)))
