@@ -10,7 +10,9 @@ Measured in one run:
 * the whole campaign of ``--samples`` samples (a grid over ``plant.k[1]``) with 1 and with 2 workers
   (cluster start-up timed separately), samples per second and the speed-up.
 
-The load average before and after is printed: on a shared machine other processes take cores too.
+The load average before and after is printed, and how busy the workers were (their CPU time over
+workers x wall time): on a shared machine other processes take the cores too, and a speed-up below 2
+with workers far from 100 % busy is the machine's, not the campaign's.
 
     .venv/bin/python benchmarks/campaign_throughput.py [--scenario ltv-ls-bounded] [--stop-time 4]
                                                        [--samples 12] [--workers 1 2]
@@ -51,7 +53,9 @@ def campaign(plan, workers: int) -> dict:
     rows = table.to_pylist()
     assert all(row["status"] == "ok" for row in rows), [row["reason"] for row in rows]
     steady = [row["wall_time"] for row in rows if row["run_in_session"] > 1]
+    cpu = sum(row["cpu_time"] for row in rows)
     return {"cluster": ready - started, "campaign": finished - ready, "rows": rows,
+            "busy": cpu / (workers * (finished - ready)), "cpu": statistics.median(row["cpu_time"] for row in rows),
             "steady": statistics.median(steady) if steady else float("nan"),
             "setup": statistics.median(row["setup_time"] for row in rows if row["run_in_session"] == 1)}
 
@@ -79,7 +83,8 @@ def main() -> None:
         per_sample = r["campaign"] / len(plan.samples)
         print(f"{n} worker(s): cluster start {r['cluster']:5.2f} s, campaign {r['campaign']:6.2f} s -> "
               f"{len(plan.samples) / r['campaign']:.3f} samples/s, {per_sample:.2f} s per sample "
-              f"(reused session: median {r['steady']:.2f} s per run; first sample's set-up {r['setup']:.2f} s)")
+              f"(reused session: median {r['steady']:.2f} s per run, {r['cpu']:.2f} s CPU; first sample's "
+              f"set-up {r['setup']:.2f} s); the workers' CPU time is {100 * r['busy']:.0f} % of workers x wall time")
     if len(results) >= 2:
         one, two = results[args.workers[0]]["campaign"], results[args.workers[1]]["campaign"]
         print(f"speed-up {args.workers[0]} -> {args.workers[1]} workers: {one / two:.2f}x")

@@ -16,7 +16,7 @@ __all__ = ["measured", "campaign_table", "summary_text", "LEADING_COLUMNS"]
 
 #: columns after the sample id and the inputs, in this order; the scenario's summary metrics follow
 LEADING_COLUMNS = ("status", "reason", "converged", "convergence_time", "final_error", "t_end", "wall_time",
-                   "setup_time", "run_in_session", "worker", "invocation", "finished_at", "fmu_set", "warnings")
+                   "cpu_time", "setup_time", "run_in_session", "worker", "invocation", "finished_at", "fmu_set", "warnings")
 QUANTILES = (0.0, 0.05, 0.25, 0.5, 0.75, 0.95, 1.0)
 
 

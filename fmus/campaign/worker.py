@@ -148,7 +148,7 @@ def _discard(task: Task) -> None:
 def run_sample(task: Task) -> dict:
     """Run one sample and return its row (inputs, status, reason, timings, the scenario's summary metrics)."""
     row = {"sample_id": task.sample_id, **task.inputs, "status": "ok", "reason": "", "t_end": float("nan"),
-           "wall_time": float("nan"), "setup_time": 0.0, "run_in_session": 0, "worker": f"{socket.gethostname()}:"
+           "wall_time": float("nan"), "cpu_time": float("nan"), "setup_time": 0.0, "run_in_session": 0, "worker": f"{socket.gethostname()}:"
            f"{os.getpid()}", "fmu_set": task.fmu_set, "warnings": ""}
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -156,7 +156,7 @@ def run_sample(task: Task) -> dict:
             session, row["run_in_session"], row["setup_time"] = _session(task)
         except Exception as exc:   # noqa: BLE001 -- any failure is the sample's data
             return {**row, "status": "error", "reason": f"setting up the FMUs failed: {_text(exc)}"}
-        started = wallclock.perf_counter()
+        started, cpu = wallclock.perf_counter(), wallclock.process_time()
         deadline = started + task.time_limit
         try:
             result = session.run(**task.settings, start=task.start,
@@ -172,6 +172,7 @@ def run_sample(task: Task) -> dict:
             else:
                 row.update(_metrics(task, result, row))
         row["wall_time"] = wallclock.perf_counter() - started
+        row["cpu_time"] = wallclock.process_time() - cpu
         row["warnings"] = " | ".join(dict.fromkeys(str(w.message) for w in caught))[:2000]
     return row
 
