@@ -61,10 +61,10 @@ def summary_text(plan: Plan, table: pa.Table) -> str:
     total, rows = len(plan.samples), table.to_pylist()
     status = Counter(row["status"] for row in rows)
     unit = plan.time_unit
-    lines = [f"{plan.scenario.name}: {len(rows)} of {total} samples done ("
-             + ", ".join(f"{status[s]} {s}" for s in ("ok", "error", "timeout", "crashed") if status[s]) + ")"]
+    counts = ", ".join(f"{status[s]} {s}" for s in ("ok", "error", "timeout", "crashed") if status[s])
+    lines = [f"{plan.scenario.name}: {len(rows)} of {total} samples done" + (f" ({counts})" if counts else "")]
     if len(rows) < total:
-        lines.append(f"  {total - len(rows)} samples missing: rerun the same command to compute them")
+        lines.append(f"  {total - len(rows)} samples missing: run the same command again (without --report-only) to compute them")
     converged = np.array([row["convergence_time"] for row in rows if row.get("converged")], dtype=float)
     finished = np.array([row["final_error"] for row in rows if row["status"] == "ok"], dtype=float)
     stop = plan.settings["stop_time"]
