@@ -123,7 +123,8 @@ class Campaign:
         self.specs: dict[str, Spec] = {}
         for name, value in self.vary.items():
             _split(name, "--vary")
-            self.specs[name] = value if isinstance(value, (Grid, Choice, Distribution)) else spec_from_value(name, value)
+            parsed = isinstance(value, (Grid, Choice, Distribution))
+            self.specs[name] = value if parsed else spec_from_value(name, value)
         if not self.specs:
             raise CampaignError("vary: a campaign varies at least one INSTANCE.VARIABLE (--vary NAME=SPEC)")
         self.fixed = {name: _number(f"--set {name}", value) for name, value in self.set.items()}
@@ -171,7 +172,8 @@ class Campaign:
         known = {f for f in cls.__dataclass_fields__}
         unknown = sorted(set(data) - known)
         if unknown:
-            raise CampaignError(f"--config {path}: unknown key(s) {', '.join(unknown)}; known: {', '.join(sorted(known))}")
+            raise CampaignError(f"--config {path}: unknown key(s) {', '.join(unknown)}; "
+                                f"known: {', '.join(sorted(known))}")
         for key in ("vary", "set"):
             if key in data and not isinstance(data[key], dict):
                 raise CampaignError(f"--config {path}: [{key}] must be a table of \"instance.variable\" = ...")

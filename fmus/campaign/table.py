@@ -16,7 +16,8 @@ __all__ = ["measured", "campaign_table", "summary_text", "LEADING_COLUMNS"]
 
 #: columns after the sample id and the inputs, in this order; the scenario's summary metrics follow
 LEADING_COLUMNS = ("status", "reason", "converged", "convergence_time", "final_error", "t_end", "wall_time",
-                   "cpu_time", "setup_time", "run_in_session", "worker", "invocation", "finished_at", "fmu_set", "warnings")
+                   "cpu_time", "setup_time", "run_in_session", "worker", "invocation", "finished_at", "fmu_set",
+                   "warnings")
 QUANTILES = (0.0, 0.05, 0.25, 0.5, 0.75, 0.95, 1.0)
 
 
@@ -64,7 +65,8 @@ def summary_text(plan: Plan, table: pa.Table) -> str:
     counts = ", ".join(f"{status[s]} {s}" for s in ("ok", "error", "timeout", "crashed") if status[s])
     lines = [f"{plan.scenario.name}: {len(rows)} of {total} samples done" + (f" ({counts})" if counts else "")]
     if len(rows) < total:
-        lines.append(f"  {total - len(rows)} samples missing: run the same command again (without --report-only) to compute them")
+        lines.append(f"  {total - len(rows)} samples missing: run the same command again (without --report-only) "
+                     f"to compute them")
     converged = np.array([row["convergence_time"] for row in rows if row.get("converged")], dtype=float)
     finished = np.array([row["final_error"] for row in rows if row["status"] == "ok"], dtype=float)
     stop = plan.settings["stop_time"]
@@ -81,7 +83,8 @@ def summary_text(plan: Plan, table: pa.Table) -> str:
     walls = np.array([row["wall_time"] for row in rows if row.get("wall_time") is not None
                       and math.isfinite(row["wall_time"])])
     setups = np.array([row["setup_time"] for row in rows if row.get("setup_time")])
+    setup = np.median(setups) if setups.size else 0.0
     if walls.size:
         lines.append(f"wall time per sample: median {np.median(walls):.3g} s, total {walls.sum():.4g} s of runs; "
-                     f"{setups.size} session set-ups (extract + instantiate), median {np.median(setups) if setups.size else 0:.3g} s")
+                     f"{setups.size} session set-ups (extract + instantiate), median {setup:.3g} s")
     return "\n".join(lines)

@@ -148,8 +148,8 @@ def _discard(task: Task) -> None:
 def run_sample(task: Task) -> dict:
     """Run one sample and return its row (inputs, status, reason, timings, the scenario's summary metrics)."""
     row = {"sample_id": task.sample_id, **task.inputs, "status": "ok", "reason": "", "t_end": float("nan"),
-           "wall_time": float("nan"), "cpu_time": float("nan"), "setup_time": 0.0, "run_in_session": 0, "worker": f"{socket.gethostname()}:"
-           f"{os.getpid()}", "fmu_set": task.fmu_set, "warnings": ""}
+           "wall_time": float("nan"), "cpu_time": float("nan"), "setup_time": 0.0, "run_in_session": 0,
+           "worker": f"{socket.gethostname()}:{os.getpid()}", "fmu_set": task.fmu_set, "warnings": ""}
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
