@@ -137,3 +137,10 @@ def test_a_killed_worker_process_costs_no_sample(client, build_dir, tmp_path):
     assert len(rows) == 8 and len({row["sample_id"] for row in rows}) == 8
     assert all(row["status"] == "ok" for row in rows), [row["reason"] for row in rows]
     _wait_for(lambda: len(client.scheduler_info()["workers"]) == 2, 60, "the nanny to restart the worker")
+
+
+def test_the_default_local_cluster_runs_a_campaign_with_a_progress_bar(build_dir, tmp_path, capfd):
+    campaign = Campaign("discrete-gpebo", vary={"source.amplitude[1]": "[0.5, 1.5]"}, build_dir=build_dir)
+    table = run_campaign(campaign, workers=1, out=tmp_path, progress=True)
+    assert table.num_rows == 2 and table["converged"].to_pylist() == [True, True]
+    assert "2/2 samples  0 failed" in capfd.readouterr().err
