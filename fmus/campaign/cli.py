@@ -12,7 +12,7 @@ EXAMPLES = """examples:
   obsfmu sweep ltv-ls-bounded --vary 'plant.k[1]=uniform(-4,-2)' --vary 'plant.x0[1]=normal(2,0.5)' \\
                --samples 32 --seed 1 --stop-time 30 --workers 2 --out results/ltv
   obsfmu sweep uio-ftdrem --vary plant.omega=0.5:2:4 --vary 'plant.noise_std=[0, 1e-3, 1e-2]'
-  obsfmu sweep --config study.toml --scheduler tcp://10.0.0.5:8786
+  obsfmu sweep --config study.toml --scheduler tcp://SCHEDULER_HOST:8786
 
 SPEC: a grid LO:HI:COUNT, a list [a, b, c] or a,b,c, or uniform(lo, hi), normal(mean, std),
 loguniform(lo, hi) (random specs need --samples; every grid point gets the same draws).
