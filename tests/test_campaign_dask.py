@@ -19,6 +19,7 @@ import sys
 import time
 from pathlib import Path
 
+import distributed
 import pytest
 
 from fmus import cli
@@ -27,8 +28,6 @@ from fmus.campaign.runner import local_cluster, run_campaign
 from fmus.campaign.store import load_rows
 from fmus.result import Result
 from fmus.scenarios import get
-
-distributed = pytest.importorskip("distributed")
 
 OBSFMU = [sys.executable, "-m", "fmus.cli"]
 
