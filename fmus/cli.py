@@ -477,5 +477,8 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_USAGE
 
 
-if __name__ == "__main__":
-    sys.exit(main())
+from .campaign import cli as _campaign_cli  # noqa: E402,F401  registers obsfmu sweep
+
+if __name__ == "__main__":  # python -m fmus.cli: run the imported module, where subcommands registered
+    from fmus.cli import main as _main
+    sys.exit(_main())
