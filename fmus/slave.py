@@ -467,8 +467,15 @@ class BlockSlave(Fmi2Slave):
             if not within(end, self._bound):
                 return self._refuse(t, h, f"input {port} at the step end (value + h * derivative) = "
                                           f"{_verdict(end, self._bound)}")
-        if block.stateless:
-            self._commit_step(t, h, ends, None, None)
+        if block.stateless:                   # nothing to advance; its outputs are still checked
+            try:
+                outputs = block.outputs(t + h, {**self._inputs, **ends})
+                fault = self._output_fault(outputs, self._bound)
+            except _NUMERICAL_FAULTS as exc:
+                fault = f"{type(exc).__name__}: {exc}"
+            if fault:
+                return self._refuse(t, h, f"after the step {fault} ({self._suspects()})")
+            self._commit_step(t, h, ends, None, outputs)
             return True
         before = self._snapshot
         if before is None:

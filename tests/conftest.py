@@ -15,3 +15,10 @@ def build_dir(tmp_path_factory):
 def ship_fmus(build_dir):
     from fmus.scenarios import ensure_fmus, get
     return ensure_fmus(get("ship"), build_dir)
+
+
+@pytest.fixture(scope="session")
+def kind_fmus(build_dir):
+    """``kind -> (scenario step, path)``: one FMU of every block kind of the scenarios, built once."""
+    from faults_support import one_per_kind
+    return one_per_kind(build_dir)
