@@ -170,11 +170,20 @@ def gauss_seidel(probes: dict[str, Probe], connections, h: float, count: int, re
 
 
 def start_for_gauss_seidel(scenario, path_of) -> dict[str, Probe]:
-    """Initialised instances of ``scenario``, with ``<input>_interpolation = 2`` on every connected
-    input (the value set is the one at the step end)."""
+    """Initialised instances of ``scenario`` with ``<input>_interpolation = 2`` on every connected
+    input (the value set is the one at the step end) and the inputs at ``t = 0`` set from their
+    producers before initialization ends (so the first step interpolates from them)."""
     interpolated = {}
     for connection in scenario.connections:
         instance, variable = connection.target.split(".", 1)
         interpolated.setdefault(instance, {})[f"{variable}_interpolation"] = 2
-    return {instance: Probe(path_of[model], instance, start={**start, **interpolated.get(instance, {})})
-            for instance, model, start in scenario.components}
+    probes = {instance: Probe(path_of[model], instance, start={**start, **interpolated.get(instance, {})},
+                              init=False)
+              for instance, model, start in scenario.components}
+    for name, probe in probes.items():
+        for connection in scenario.connections:
+            (source, output), (target, variable) = connection.source.split(".", 1), connection.target.split(".", 1)
+            if target == name:
+                probe.set(variable, probes[source].get([output])[0])
+        probe.slave.exitInitializationMode()
+    return probes
