@@ -253,11 +253,11 @@ def is_plain(data, depth: int = 0) -> bool:
 def _kind(value) -> str:
     if type(value) is np.ndarray:
         return f"an array {value.dtype}{list(value.shape)}"
+    name = type(value).__name__
+    article = "an" if name[0] in "aeiouAEIOU" else "a"
     if isinstance(value, (list, tuple, deque)):
-        return f"a {type(value).__name__} of {len(value)}"
-    if _is_object(value):
-        return f"a {type(value).__name__}"
-    return f"a {type(value).__name__}"
+        return f"{article} {name} of {len(value)}"
+    return f"{article} {name}"
 
 
 # ---------------------------------------------------------------------------------------- checks
