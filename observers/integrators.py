@@ -33,7 +33,7 @@ __all__ = ["LinearPropagator", "rk4_step", "substep_count", "require_budget", "B
            "DEFAULT_SUBSTEP_BUDGET"]
 
 #: default of every block's ``substep_budget``: sub-steps one communication step may take
-DEFAULT_SUBSTEP_BUDGET = 100_000
+DEFAULT_SUBSTEP_BUDGET = 10_000
 
 
 class BudgetError(SignalError):

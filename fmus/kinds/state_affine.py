@@ -15,6 +15,7 @@ import numpy as np
 
 from observers.integrators import DEFAULT_SUBSTEP_BUDGET
 from observers.state_affine import StateAffineModel, StateAffineObserver
+from observers.state_affine.observer import SUBSTEP_BUDGET
 from plants.state_affine import Chemostat, Pendulum
 
 from ..callables import resolve
@@ -38,7 +39,8 @@ def _observer(p, options):
         Psi=functions.get("Psi"), w=functions.get("w"), phi=functions.get("phi"), c=functions.get("c"),
         phi_L=functions.get("phi_L"), C=p["C"] if constant else None, L=p["L"] if constant else None)
     return StateAffineObserver(model, p["rates"], float(p["gamma"]), float(p["gamma_x"]), float(p["mu"]),
-                               p["chi_hat0"], p.get("theta_hat0"), float(p["max_substep"]), _budget(p))
+                               p["chi_hat0"], p.get("theta_hat0"), float(p["max_substep"]),
+                               p.get("substep_budget", SUBSTEP_BUDGET))
 
 
 def _budget(p):
@@ -83,7 +85,7 @@ def observer_definition(model_name: str, *, dims: dict[str, int], functions: dic
         Parameter.of("gamma_x", gamma_x, "gain of the correction term of Statement 3 (rate gamma_x Delta^2)", rate),
         Parameter.of("mu", mu, "switching level of the finite-time estimate, in (0, 1)"),
         Parameter.of("max_substep", max_substep, "longest internal integration step", time_unit),
-        Parameter.substep_budget(),
+        Parameter.substep_budget(SUBSTEP_BUDGET),
         Parameter.of("chi_hat0", np.zeros(q) if chi_hat0 is None else chi_hat0,
                      "initial estimate chi_hat(0) of the image chi = phi(x) (the observer's state)"),
     ]

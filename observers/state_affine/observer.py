@@ -53,12 +53,15 @@ import numpy as np
 from observers.block import Block, Segment
 from observers.checks import ParameterError, SignalError, as_vector, require_positive
 from observers.estimation import finite_time_estimate, mix, phi1, scalar_gradient_step
-from observers.integrators import DEFAULT_SUBSTEP_BUDGET, require_budget, rk4_step, substep_count
+from observers.integrators import require_budget, rk4_step, substep_count
 
 from .model import StateAffineModel, Terms
 from .parametrization import Parametrization
 
-__all__ = ["StateAffineObserver"]
+__all__ = ["StateAffineObserver", "SUBSTEP_BUDGET"]
+
+#: default ``substep_budget``: an internal step costs about 1 ms, so a call takes a second at most
+SUBSTEP_BUDGET = 1_000
 
 
 class _Evolving(NamedTuple):
@@ -123,7 +126,7 @@ class StateAffineObserver(Block):
     state_optional = {"switch_time": None}
 
     def __init__(self, model: StateAffineModel, rates, gamma, gamma_x, mu=0.98, chi_hat0=None,
-                 theta_hat0=None, max_substep=None, substep_budget=DEFAULT_SUBSTEP_BUDGET):
+                 theta_hat0=None, max_substep=None, substep_budget=SUBSTEP_BUDGET):
         if not isinstance(model, StateAffineModel):
             raise ParameterError(f"model: expected a StateAffineModel, got {type(model).__name__}")
         self.model = model
