@@ -150,6 +150,26 @@ class Probe:
         return status
 
 
+class LiveProbes:
+    """One running instance per kind (3 steps in), created on demand and shared by a module's tests:
+    ``live(kind) -> (probe, step, its state bytes then)``.  A refused call leaves it as it was."""
+
+    def __init__(self, kind_fmus):
+        self.kind_fmus, self.cache = kind_fmus, {}
+
+    def __call__(self, kind: str):
+        if kind not in self.cache:
+            step, path = self.kind_fmus[kind]
+            probe = Probe(path, kind)
+            probe.run(step, 3)
+            self.cache[kind] = probe, step, probe.state_bytes()
+        return self.cache[kind]
+
+    def free(self) -> None:
+        for probe, _, _ in self.cache.values():
+            probe.free()
+
+
 def gauss_seidel(probes: dict[str, Probe], connections, h: float, count: int, record=()) -> dict[str, np.ndarray]:
     """``count`` Gauss-Seidel rounds in the order of ``probes``: each instance takes the newest
     outputs of its producers (set as values at the step end: ``<input>_interpolation = 2``,

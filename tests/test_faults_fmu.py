@@ -13,7 +13,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from faults_support import BAD_VALUES, DISCARD, ERROR, OK, Probe
+from faults_support import BAD_VALUES, DISCARD, ERROR, OK, LiveProbes, Probe
 
 KINDS = ["generator-plant", "gpebo-observer", "lti-plant", "ltv-adaptive-observer", "ltv-disturbed-plant",
          "ltv-output-nonlinear-plant", "luenberger-observer", "signal-source", "state-affine-chemostat",
@@ -37,19 +37,9 @@ def test_the_kinds_are_all_the_kinds_of_the_scenarios(kind_fmus):
 
 @pytest.fixture(scope="module")
 def live(kind_fmus):
-    """One running instance per kind, shared by the examples (a refused call leaves it as it was)."""
-    cache = {}
-
-    def get(kind):
-        if kind not in cache:
-            step, path = kind_fmus[kind]
-            probe = Probe(path, kind)
-            probe.run(step, 3)
-            cache[kind] = probe, step
-        return cache[kind]
-    yield get
-    for probe, _ in cache.values():
-        probe.free()
+    probes = LiveProbes(kind_fmus)
+    yield probes
+    probes.free()
 
 
 def refused_and_unchanged(probe: Probe, h: float, expected: str, level: int = DISCARD) -> None:
@@ -73,31 +63,23 @@ def works(probe: Probe, step: float) -> None:
 
 # ------------------------------------------------------------------------------ inputs
 @pytest.mark.parametrize("kind", WITH_INPUTS)
+@pytest.mark.parametrize("what", ["value", "derivative"])
 @EXAMPLES
 @given(data=st.data())
-def test_a_bad_input_is_refused_naming_it(live, kind, data):
-    probe, step = live(kind)
+def test_a_bad_input_or_input_derivative_is_refused_naming_it(live, kind, what, data):
+    probe, step, _ = live(kind)
     name, value = data.draw(st.sampled_from(probe.names("input"))), data.draw(HUGE)
     probe.drive_inputs(int(round(probe.t / step)), step)
-    assert probe.set(name, value) == OK                      # setting is allowed, stepping is not
-    refused_and_unchanged(probe, step, f"input {name} = ")
-    works(probe, step)
-
-
-@pytest.mark.parametrize("kind", WITH_INPUTS)
-@EXAMPLES
-@given(data=st.data())
-def test_a_bad_input_derivative_is_refused_naming_it(live, kind, data):
-    probe, step = live(kind)
-    name, value = data.draw(st.sampled_from(probe.names("input"))), data.draw(HUGE)
-    probe.drive_inputs(int(round(probe.t / step)), step)
-    assert probe.call(probe.slave.setRealInputDerivatives, [probe.vr(name)], [1], [value]) == OK
-    refused_and_unchanged(probe, step, f"input derivative der({name}) = ")
+    if what == "value":                                       # setting is allowed, stepping is not
+        assert probe.set(name, value) == OK
+    else:
+        assert probe.call(probe.slave.setRealInputDerivatives, [probe.vr(name)], [1], [value]) == OK
+    refused_and_unchanged(probe, step, f"input {name} = " if what == "value" else f"input derivative der({name}) = ")
     works(probe, step)
 
 
 def test_an_input_leaving_the_bound_within_the_step_is_refused(live):
-    probe, step = live("luenberger-observer")
+    probe, step, _ = live("luenberger-observer")
     probe.set("y", 9e99)
     assert probe.call(probe.slave.setRealInputDerivatives, [probe.vr("y")], [1], [9e99]) == OK
     refused_and_unchanged(probe, 1.0, "input y at the step end (value + h * derivative) = 1.8e+100 exceeds")
@@ -156,7 +138,7 @@ def test_zero_negative_or_extreme_parameters_never_give_a_non_finite_step(kind_f
 
 @pytest.mark.parametrize("kind", KINDS)
 def test_fixed_parameters_are_refused_after_initialization(live, kind):
-    probe, step = live(kind)
+    probe, step, _ = live(kind)
     name = probe.names("parameter")[0]
     old, before, mark = probe.get([name]), probe.state_bytes(), len(probe.log)
     assert probe.set(name, 2.0 * old[0] + 1.0) == ERROR
@@ -224,7 +206,7 @@ def test_the_substep_budget_is_a_parameter(kind_fmus, kind, model_step):
 
 @pytest.mark.parametrize("h", [0.0, -1e-3, float("nan"), float("inf")])
 def test_a_step_size_that_is_not_positive_and_finite_is_an_error(live, h):
-    probe, step = live("luenberger-observer")
+    probe, step, _ = live("luenberger-observer")
     refused_and_unchanged(probe, h, "the step size must be positive and finite", ERROR)
     works(probe, step)
 

@@ -17,7 +17,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from faults_support import ERROR, OK, Probe
+from faults_support import ERROR, OK, LiveProbes, Probe
 from fmus.state_format import FORMAT_VERSION, decode, encode, pack
 
 KINDS = ["generator-plant", "gpebo-observer", "lti-plant", "ltv-adaptive-observer", "ltv-disturbed-plant",
@@ -29,19 +29,9 @@ EXAMPLES = settings(max_examples=10, derandomize=True, deadline=None, database=N
 
 @pytest.fixture(scope="module")
 def live(kind_fmus):
-    """One running instance per kind and its serialized state, shared by the examples."""
-    cache = {}
-
-    def get(kind):
-        if kind not in cache:
-            step, path = kind_fmus[kind]
-            probe = Probe(path, kind)
-            probe.run(step, 3)
-            cache[kind] = probe, step, probe.state_bytes()
-        return cache[kind]
-    yield get
-    for probe, _, _ in cache.values():
-        probe.free()
+    probes = LiveProbes(kind_fmus)
+    yield probes
+    probes.free()
 
 
 def identity(probe: Probe) -> str:
