@@ -167,6 +167,7 @@ class BlockSlave(Fmi2Slave):
         self._time = 0.0
         self._stepping = False
         self._bound = MAGNITUDE_BOUND                    # the block's magnitude_bound once it exists
+        self._feedthrough = True                         # the block's, once it exists
         self._bad: dict[str, float] = {}                 # input (or der(input)) element -> refused value
         self._snapshot: tuple[dict, Leaves] | None = None   # the block's state now, checked (rollback point)
         self._last_inputs: dict[str, tuple[np.ndarray, float]] = {}
@@ -233,7 +234,8 @@ class BlockSlave(Fmi2Slave):
 
     def _input_changed(self, name, value):
         self._flag(name, value)
-        self._outputs_cache = None
+        if self._feedthrough:                  # other blocks' outputs do not depend on the inputs
+            self._outputs_cache = None
 
     def _flag(self, name: str, value: float) -> None:
         """Remember an input (or input derivative) element that a step must refuse."""
@@ -315,6 +317,7 @@ class BlockSlave(Fmi2Slave):
     def _use_block(self, block: Block | None) -> None:
         self._block, self._snapshot, self._outputs_cache = block, None, None
         self._bound = MAGNITUDE_BOUND if block is None else block.magnitude_bound
+        self._feedthrough = block is None or block.feedthrough
         self._bad = {}
         for port, names in self._element_names.items():
             for name, value in zip(names, self._inputs[port]):
@@ -382,9 +385,12 @@ class BlockSlave(Fmi2Slave):
         if self._bad:
             return                              # the first step refuses the inputs, naming them
         try:
-            fault = self._output_fault(block.outputs(self._time, self._inputs), self._bound)
+            outputs = block.outputs(self._time, self._inputs)
+            fault = self._output_fault(outputs, self._bound)
         except _NUMERICAL_FAULTS as exc:
             fault = f"computing them raised {type(exc).__name__}: {exc}"
+        else:
+            self._outputs_cache = outputs
         if fault:
             self._use_block(None)
             self._block_error = f"the first outputs are not usable: {fault} ({self._suspects()})"
@@ -490,8 +496,10 @@ class BlockSlave(Fmi2Slave):
             if fault is None:
                 outputs = block.outputs(t + h, {**self._inputs, **ends})
                 fault = self._output_fault(outputs, self._bound)
-        except Exception as exc:
+        except BaseException as exc:            # KeyboardInterrupt too: roll back, then let it through
             block.set_state(before[0], check=False)
+            if not isinstance(exc, Exception):
+                raise
             expected = isinstance(exc, _NUMERICAL_FAULTS) and not isinstance(exc, StateError)
             return self._refuse(t, h, f"{type(exc).__name__}: {exc}" + ("" if expected else " (a bug: please report)"),
                                 Fmi2Status.discard if expected else Fmi2Status.error)
