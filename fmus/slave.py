@@ -483,15 +483,15 @@ class BlockSlave(Fmi2Slave):
                 return self._refuse(t, h, f"after the step {fault} ({self._suspects()})")
             self._commit_step(t, h, ends, None, outputs)
             return True
-        before = self._snapshot
+        before = self._snapshot                # the state now, checked (None: not yet captured)
+        checked = before[1] if before else None
         if before is None:
-            leaves = Leaves()
-            before = (capture(block, leaves), leaves)
+            before = (capture(block), None)
         try:
             block.advance(t, h, {port: self._segment(port, t, h) for port in self._inputs})
             leaves = Leaves()
             tree = capture(block, leaves)
-            fault = self._state_fault(tree, leaves, before[1], self._bound)
+            fault = self._state_fault(tree, leaves, checked, self._bound)
             outputs = None
             if fault is None:
                 outputs = block.outputs(t + h, {**self._inputs, **ends})
