@@ -188,6 +188,16 @@ def test_a_huge_step_returns_at_once_and_changes_nothing_when_refused(kind_fmus,
     probe.free()
 
 
+def test_the_issue_step_of_a_million_seconds_on_the_pendulum_observer(build_dir):
+    """Issue 13: ``fmi2DoStep(h = 1e6)`` on the state-affine-pendulum observer never returned."""
+    from fmus.scenarios import ensure_fmus, get
+    probe = Probe(ensure_fmus(get("state-affine-pendulum"), build_dir)["state_affine_pendulum_observer"])
+    refused_and_unchanged(probe, 1e6, "substep_budget: the step h = 1e+06 needs 1e+09 sub-steps of at most "
+                                      "max_substep = 0.001, more than substep_budget = 1000")
+    works(probe, 1e-3)
+    probe.free()
+
+
 @pytest.mark.parametrize("kind, model_step", [("ltv-adaptive-observer", None), ("ltv-output-nonlinear-plant", None),
                                               ("state-affine-observer", None), ("state-affine-pendulum", 1e-3),
                                               ("state-affine-chemostat", 1e-2), ("ltv-disturbed-plant", None)])
