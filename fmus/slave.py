@@ -63,7 +63,7 @@ from pythonfmu.default_experiment import DefaultExperiment
 
 from observers.block import MAGNITUDE_BOUND, Block, Segment
 from observers.checks import ParameterError
-from observers.state import Leaves, StateError, capture, out_of_bounds, within, within_bound
+from observers.state import Leaves, StateError, capture, out_of_bounds, unchanged_skipped, within, within_bound
 
 from .definition import FmuDefinition, element_unit
 from .kinds import create_block
@@ -172,7 +172,7 @@ class BlockSlave(Fmi2Slave):
         self._snapshot: tuple[dict, Leaves] | None = None   # the block's state now, checked (rollback point)
         self._last_inputs: dict[str, tuple[np.ndarray, float]] = {}
         self._derivatives: dict[str, np.ndarray] = {}  # first input derivatives for the next step
-        self._input_elements: dict[int, tuple[str, int]] = {}  # value reference -> (port, index)
+        self._input_elements: dict[int, tuple[str, int, str]] = {}  # value reference -> (port, index, name)
         self._element_names = {p.name: p.element_names for p in definition.inputs}
 
         for p in definition.parameters:
@@ -184,7 +184,8 @@ class BlockSlave(Fmi2Slave):
         for port in definition.inputs:
             references = self._register_array(port.element_names, self._inputs[port.name], Fmi2Causality.input,
                                               port.description, port.unit, on_set=self._input_changed)
-            self._input_elements.update({vr: (port.name, i) for i, vr in enumerate(references)})
+            self._input_elements.update({vr: (port.name, i, name)
+                                         for i, (vr, name) in enumerate(zip(references, port.element_names))})
         for port in definition.outputs:
             self._register_outputs(port)
 
@@ -267,8 +268,22 @@ class BlockSlave(Fmi2Slave):
                                  f"or reset the instance")
 
     def set_real(self, vrs, values):
-        self._check_writable(vrs, Real, values)
-        super().set_real(vrs, values)
+        elements = self._input_elements
+        targets = [elements.get(vr) for vr in vrs]
+        if None in targets:
+            self._check_writable(vrs, Real, values)
+            super().set_real(vrs, values)
+            return
+        inputs, bound, bad = self._inputs, self._bound, self._bad   # the hot path: inputs, every step
+        for (port, index, name), value in zip(targets, values):
+            inputs[port][index] = value
+            if -bound <= value <= bound:
+                if bad:
+                    bad.pop(name, None)
+            else:
+                bad[name] = value
+        if self._feedthrough:                  # other blocks' outputs do not depend on the inputs
+            self._outputs_cache = None
 
     def set_integer(self, vrs, values):
         self._check_writable(vrs, Integer, values)
@@ -409,20 +424,20 @@ class BlockSlave(Fmi2Slave):
         Higher orders are ignored with a warning.  NaN, inf and huge values make the next
         step refuse (like inputs).
         """
-        unknown = [vr for vr in vrs if vr not in self._input_elements]
+        elements, derivatives = self._input_elements, self._derivatives
+        unknown = [vr for vr in vrs if vr not in elements]
         if unknown:
             raise ValueError(f"value reference {unknown[0]} is not a real input")
         for vr, order, value in zip(vrs, orders, values):
             if order != 1:
                 self.log(f"input derivative of order {order} ignored (only order 1 is used)", Fmi2Status.warning)
                 continue
-            port, index = self._input_elements[vr]
-            self._derivatives.setdefault(port, np.zeros_like(self._inputs[port]))[index] = value
-            self._flag(f"der({self._element_names[port][index]})", value)
-
-    def _end_inputs(self, step: float) -> dict[str, np.ndarray]:
-        """Inputs with a derivative followed it to the end of the step: ``u + h du``."""
-        return {port: self._inputs[port] + step * derivative for port, derivative in self._derivatives.items()}
+            port, index, name = elements[vr]
+            if port not in derivatives:
+                derivatives[port] = np.zeros_like(self._inputs[port])
+            derivatives[port][index] = value
+            if not -self._bound <= value <= self._bound or self._bad:
+                self._flag(f"der({name})", value)
 
     def _remember_inputs(self, time: float, step: float = 0.0, ends: dict[str, np.ndarray] | None = None):
         """Record each input with the time it belongs to, after a step of length ``step``.
@@ -456,9 +471,46 @@ class BlockSlave(Fmi2Slave):
         return False
 
     def do_step(self, current_time, step_size):
-        t, h = current_time, step_size
-        block = self._block or self._try_block()
-        if block is None:
+        t, h, block = current_time, step_size, self._block
+        if block is None or self._bad or not (0.0 < h < math.inf and math.isfinite(t)):
+            return self._refuse_before(t, h)
+        inputs = self._inputs
+        ends = {port: inputs[port] + h * slope for port, slope in self._derivatives.items()}
+        at_end = {**inputs, **ends} if ends else inputs
+        before = None if block.stateless else self._snapshot   # the state now, checked (or None)
+        checked = None if before is None else before[1]
+        if before is None and not block.stateless:
+            before = (capture(block), None)
+        tree = leaves = outputs = None
+        try:
+            if before is not None:
+                block.advance(t, h, {port: self._segment(port, t, h) for port in inputs})
+                leaves = Leaves()
+                tree = capture(block, leaves)
+            outputs = block.outputs(t + h, at_end)
+            fault = None if self._all_within(leaves, checked, ends, outputs) else \
+                self._fault(tree, leaves, checked, ends, outputs, None)
+        except BaseException as exc:            # KeyboardInterrupt too: roll back, then let it through
+            if before is not None:
+                block.set_state(before[0], check=False)
+            if not isinstance(exc, Exception):
+                raise
+            if isinstance(exc, _NUMERICAL_FAULTS) and not isinstance(exc, StateError):
+                return self._refuse(t, h, self._fault(tree, leaves, checked, ends, outputs, exc))
+            return self._refuse(t, h, f"{type(exc).__name__}: {exc} (a bug: please report)", Fmi2Status.error)
+        if fault:
+            if before is not None:
+                block.set_state(before[0], check=False)
+            return self._refuse(t, h, fault)
+        self._remember_inputs(t, h, ends)
+        self._time = t + h
+        self._snapshot = None if tree is None else (tree, leaves)
+        self._outputs_cache = outputs
+        return True
+
+    def _refuse_before(self, t: float, h: float) -> bool:
+        """A step refused before anything is computed: no block, a bad step size, a bad input."""
+        if self._try_block() is None:
             return self._refuse(t, h, f"the parameters do not define a valid block: {self._block_error}",
                                 Fmi2Status.error)
         if not (0.0 < h < math.inf and math.isfinite(t)):
@@ -468,52 +520,38 @@ class BlockSlave(Fmi2Slave):
             name, value = next(iter(self._bad.items()))
             kind = "input derivative" if name.startswith("der(") else "input"
             return self._refuse(t, h, f"{kind} {name} = {_verdict(value, self._bound)}")
-        ends = self._end_inputs(h)
+        return self.do_step(t, h)                 # the block was built just now
+
+    def _all_within(self, leaves: Leaves | None, checked: Leaves | None, ends: dict, outputs: dict) -> bool:
+        """One cheap test of everything a step produced -- the state it rebound, the inputs at its
+        end, the outputs: the sum of their squares (inf or NaN if any entry is) within the bound;
+        entry by entry only if not."""
+        total, arrays = 0.0, list(ends.values())
+        arrays.extend(outputs.values())
+        if leaves is not None:
+            arrays.extend(unchanged_skipped(leaves, checked))
+            for value in leaves.floats:
+                total += value * value
+        for array in arrays:
+            total += array.dot(array) if array.ndim == 1 and array.dtype.kind == "f" else \
+                np.vdot(array, array).real
+        return total <= self._bound * self._bound or \
+            all(within(np.ravel(array), self._bound) for array in arrays) and \
+            all(-self._bound <= value <= self._bound for value in (leaves.floats if leaves else ()))
+
+    def _fault(self, tree, leaves, checked, ends, outputs, error) -> str:
+        """What :meth:`_all_within` (or ``error``, raised by the step) found wrong, in words."""
         for port, end in ends.items():
             if not within(end, self._bound):
-                return self._refuse(t, h, f"input {port} at the step end (value + h * derivative) = "
-                                          f"{_verdict(end, self._bound)}")
-        if block.stateless:                   # nothing to advance; its outputs are still checked
-            try:
-                outputs = block.outputs(t + h, {**self._inputs, **ends})
-                fault = self._output_fault(outputs, self._bound)
-            except _NUMERICAL_FAULTS as exc:
-                fault = f"{type(exc).__name__}: {exc}"
-            if fault:
-                return self._refuse(t, h, f"after the step {fault} ({self._suspects()})")
-            self._commit_step(t, h, ends, None, outputs)
-            return True
-        before = self._snapshot                # the state now, checked (None: not yet captured)
-        checked = before[1] if before else None
-        if before is None:
-            before = (capture(block), None)
-        try:
-            block.advance(t, h, {port: self._segment(port, t, h) for port in self._inputs})
-            leaves = Leaves()
-            tree = capture(block, leaves)
+                return f"input {port} at the step end (value + h * derivative) = {_verdict(end, self._bound)}"
+        if tree is not None:
             fault = self._state_fault(tree, leaves, checked, self._bound)
-            outputs = None
-            if fault is None:
-                outputs = block.outputs(t + h, {**self._inputs, **ends})
-                fault = self._output_fault(outputs, self._bound)
-        except BaseException as exc:            # KeyboardInterrupt too: roll back, then let it through
-            block.set_state(before[0], check=False)
-            if not isinstance(exc, Exception):
-                raise
-            expected = isinstance(exc, _NUMERICAL_FAULTS) and not isinstance(exc, StateError)
-            return self._refuse(t, h, f"{type(exc).__name__}: {exc}" + ("" if expected else " (a bug: please report)"),
-                                Fmi2Status.discard if expected else Fmi2Status.error)
-        if fault:
-            block.set_state(before[0], check=False)
-            return self._refuse(t, h, f"after the step {fault} ({self._suspects()})")
-        self._commit_step(t, h, ends, (tree, leaves), outputs)
-        return True
-
-    def _commit_step(self, t, h, ends, snapshot, outputs) -> None:
-        self._remember_inputs(t, h, ends)
-        self._time = t + h
-        self._snapshot = snapshot
-        self._outputs_cache = outputs
+            if fault:
+                return f"after the step {fault} ({self._suspects()})"
+        if error is not None:
+            return f"{type(error).__name__}: {error}"
+        fault = self._output_fault(outputs, self._bound) or "a value out of bounds"
+        return f"after the step {fault} ({self._suspects()})"
 
     # ------------------------------------------------------------------ FMU state
     @property

@@ -36,8 +36,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["StateError", "DTYPES", "Leaves", "capture", "restore", "within", "within_bound", "out_of_bounds",
-           "is_plain"]
+__all__ = ["StateError", "DTYPES", "Leaves", "capture", "restore", "within", "within_bound", "unchanged_skipped",
+           "out_of_bounds", "is_plain"]
 
 #: dtypes a state array may have (little-endian on every supported platform)
 DTYPES = (np.dtype(np.float64), np.dtype(np.int64), np.dtype(np.bool_), np.dtype(np.complex128))
@@ -262,18 +262,28 @@ def _kind(value) -> str:
 
 # ---------------------------------------------------------------------------------------- checks
 def within(values: np.ndarray, bound: float) -> bool:
-    """True when every entry of ``values`` is finite and at most ``bound`` in magnitude."""
-    square = np.vdot(values, values).real               # one cheap call decides almost always
-    return bool(square <= bound * bound or np.all(np.abs(values) <= bound))
+    """True when every entry of ``values`` (1-D) is finite and at most ``bound`` in magnitude."""
+    square = values @ values if values.dtype.kind == "f" else np.vdot(values, values).real
+    if square <= bound * bound:                        # one cheap call decides almost always
+        return True
+    return bool(np.all(np.abs(values) <= bound))
+
+
+def unchanged_skipped(leaves: Leaves, previous: Leaves | None) -> list[np.ndarray]:
+    """The arrays of ``leaves`` that ``previous`` does not hold (by identity): those a step rebound."""
+    arrays, old = leaves.arrays, () if previous is None else previous.arrays
+    if len(old) == len(arrays):             # the same attributes in the same order: compare in place
+        return [a for a, b in zip(arrays, old) if a is not b]
+    if old:
+        known = set(map(id, old))
+        return [a for a in arrays if id(a) not in known]
+    return list(arrays)
 
 
 def within_bound(leaves: Leaves, bound: float, previous: Leaves | None = None) -> bool:
     """:func:`within` for every number of ``leaves``, skipping arrays that ``previous`` (the
     leaves of an earlier, checked capture) holds too: by the sharing rule they did not change."""
-    arrays = leaves.arrays
-    if previous is not None and previous.arrays:
-        known = set(map(id, previous.arrays))
-        arrays = [a for a in arrays if id(a) not in known]
+    arrays = unchanged_skipped(leaves, previous)
     if leaves.floats:
         arrays = arrays + [np.array(leaves.floats)]
     return not arrays or within(np.concatenate(arrays, axis=None), bound)
