@@ -37,3 +37,22 @@ def every_fmu3(build_dir):
         for model, path in ensure_fmus(scenario, build_dir, fmi_version=3).items():
             found.setdefault(model, (scenario.step, path))
     return found
+
+
+@pytest.fixture(scope="session")
+def kind_fmus(build_dir):
+    """``kind -> (scenario step, path)``: one FMU of every block kind of the scenarios, built once."""
+    from faults_support import one_per_kind
+    return one_per_kind(build_dir)
+
+
+def pytest_collection_modifyitems(config, items):
+    """Tests marked ``full_reference`` re-derive a whole stored reference (minutes): opt-in."""
+    import os
+
+    if os.environ.get("OBSFMU_FULL_REFERENCES"):
+        return
+    skip = pytest.mark.skip(reason="re-derives a whole stored reference (minutes); set OBSFMU_FULL_REFERENCES=1")
+    for item in items:
+        if "full_reference" in item.keywords:
+            item.add_marker(skip)

@@ -16,6 +16,7 @@ from fmpy.validation import validate_fmu
 from scipy.linalg import expm
 
 from fmus.builder import build_fmu, is_current
+from reference.paper002 import K
 from fmus.kinds.linear import plant_definition
 from observers.lti_model import StateSpace
 
@@ -107,7 +108,7 @@ def test_nan_input_is_refused_logged_and_the_state_kept(ship_fmus, capfd):
     slave.setReal([vr["y"]], [float("nan")])
     with pytest.raises(FMICallException, match="discard"):
         slave.doStep(1e-3, 1e-3)
-    assert "input y: non-finite value" in capfd.readouterr().out
+    assert "input y = nan is not finite" in capfd.readouterr().out
     assert slave.getReal([vr["x_hat[1]"], vr["x_hat[2]"]]) == before  # untouched
     assert slave.getRealStatus(fmi2LastSuccessfulTime) == 1e-3
     slave.setFMUstate(saved)  # FMI 2.0: a failed step is redone from a saved state
@@ -154,6 +155,7 @@ def test_one_fmu_instantiated_many_times_in_one_process(ship_fmus):
     path = ship_fmus["ship_controller"]
     description = read_model_description(str(path))
     directory = extract(str(path))
+    references = {v.name: v.valueReference for v in description.modelVariables}
     for k in range(40):
         slave = FMU2Slave(guid=description.guid, unzipDirectory=directory,
                           modelIdentifier=description.coSimulation.modelIdentifier, instanceName=f"c{k}")
@@ -161,6 +163,10 @@ def test_one_fmu_instantiated_many_times_in_one_process(ship_fmus):
         slave.setupExperiment(startTime=0.0)
         slave.enterInitializationMode()
         slave.exitInitializationMode()
+        slave.setReal([references["x_hat[1]"], references["x_hat[2]"], references["r"]], [k, 1.0, 0.5])
+        slave.doStep(0.0, 1e-3)
+        # every instance is alive and its own: u = -K x_hat + r with this instance's inputs
+        assert slave.getReal([references["u"]]) == pytest.approx([-(K[0, 0] * k + K[0, 1]) + 0.5], rel=1e-12)
         slave.terminate()
         slave.freeInstance()
 
@@ -226,7 +232,9 @@ def test_bad_interpolation_mode_is_refused_and_logged(ship_fmus, capfd):
     slave, vr = open_slave(ship_fmus["ship_observer"], "mode")
     slave.setupExperiment(startTime=0.0)
     slave.enterInitializationMode()
-    with pytest.raises(FMICallException, match="error"):  # logged at error level: the call is an error
-        slave.setInteger([vr["y_interpolation"]], [7])
+    slave.setInteger([vr["u_interpolation"], vr["y_interpolation"]], [1, 2])
+    with pytest.raises(FMICallException, match=r"status 3 \(error\)"):   # nothing of the call is set
+        slave.setInteger([vr["u_interpolation"], vr["y_interpolation"]], [0, 7])
     assert "y_interpolation: 7 is not 0 (hold), 1 (extrapolate) or 2 (interpolate)" in capfd.readouterr().out
+    assert slave.getInteger([vr["u_interpolation"], vr["y_interpolation"]]) == [1, 2]
     slave.freeInstance()

@@ -174,7 +174,7 @@ def test_noise_parameters_are_checked():
 
 
 def observer_state(o):
-    return o.S.copy(), o.estimator.theta_hat.copy(), o.estimator.P.copy(), o.get_state()["inputs"]._last.copy()
+    return o.S.copy(), o.estimator.theta_hat.copy(), o.estimator.P.copy(), o.get_state()["inputs"]["_last"]
 
 
 def test_a_non_finite_input_is_refused_and_the_state_kept():

@@ -13,6 +13,7 @@ from collections.abc import Callable
 import numpy as np
 
 from observers.checks import ParameterError
+from observers.integrators import DEFAULT_SUBSTEP_BUDGET
 from observers.ltv_adaptive import LTVAdaptiveObserver
 from plants.ltv import OutputNonlinearLTVPlant
 from plants.signals import SampledNoise
@@ -37,7 +38,8 @@ def _function(options: dict, key: str) -> Callable:
 def _plant(p, options):
     noise = SampledNoise(float(p["noise_std"]), float(p["noise_dt"]), float(p["noise_seed"]))   # checks all three
     return OutputNonlinearLTVPlant(_function(options, "A"), p["C"], _function(options, "f"), p["k"], p["b"],
-                                   p["m"], p["x0"], noise, float(p["max_substep"]), float(p["max_dy"]))
+                                   p["m"], p["x0"], noise, float(p["max_substep"]), float(p["max_dy"]),
+                                   _budget(p))
 
 
 @register(OBSERVER_KIND)
@@ -45,7 +47,11 @@ def _observer(p, options):
     return LTVAdaptiveObserver(_function(options, "A"), p["C"], _function(options, "L"), _function(options, "f"),
                                float(p["gamma"]), float(p["beta"]), float(p["f0"]), float(p["M"]),
                                p["x_hat0"], p["k_hat0"], p["b_hat0"], p["m_hat0"],
-                               float(p["max_substep"]), float(p["max_dy"]))
+                               float(p["max_substep"]), float(p["max_dy"]), _budget(p))
+
+
+def _budget(p):
+    return p.get("substep_budget", DEFAULT_SUBSTEP_BUDGET)
 
 
 def _reference(function: Callable | str) -> str:
@@ -58,7 +64,8 @@ def _scalar(name, value, description, unit=None) -> Parameter:
 
 def _stepping(max_substep: float, max_dy: float) -> list[Parameter]:
     return [_scalar("max_substep", max_substep, "longest RK4 sub-step inside a communication step", "s"),
-            _scalar("max_dy", max_dy, "largest change of y over one RK4 sub-step (resolves f(y))")]
+            _scalar("max_dy", max_dy, "largest change of y over one RK4 sub-step (resolves f(y))"),
+            Parameter.substep_budget()]
 
 
 def ltv_plant_definition(model_name: str, A, C, f, k, b, m, x0, *, noise_std=0.0, noise_dt=1e-3,
