@@ -34,17 +34,24 @@ sets 1 for them).
 
 Faults never crash the host and never corrupt the instance (``docs/faults.md`` has the table):
 
-* a parameter set that does not define a valid block, has a non-finite or huge value, or gives
-  non-finite (or huge) first outputs makes ``exit_initialization_mode`` raise, naming the
-  parameters (fmi2Error through the native binary); fixed parameters cannot be set after it;
+* a call the slave cannot carry out without harm is *refused*: it raises :class:`Refused`
+  (fmi2Error through the native binary) before changing anything, so the instance stays exactly
+  as it was and in its FMI state -- a bad value reference or type, setting an output, a fixed
+  parameter after initialization, an interpolation mode other than 0, 1, 2, a parameter set
+  that does not define a valid block or gives non-finite (or huge) first outputs at
+  ``exit_initialization_mode`` (naming the parameters), outputs that cannot be computed, FMU
+  states of another FMU or version, damaged or forged bytes;
 * every step either succeeds with a finite state or changes nothing: NaN/inf/huge inputs and
   input derivatives, a step longer than the block's sub-step budget, a failure inside the
   block, or a new state or outputs that are not finite or beyond the block's
   ``magnitude_bound`` -- the step is rolled back, one line naming the input or parameter at
   fault is logged at Discard level and ``do_step`` returns False (fmi2Discard);
+* anything else -- an unexpected exception, a bug inside a block (logged at Error level, "a bug:
+  please report") -- is a *failure*: fmi2Error, and the binary puts the instance in the FMI error
+  state (fmi2SetFMUstate, fmi2Reset or fmi2FreeInstance go on);
 * FMU states are plain data (:mod:`observers.state`) in an explicit, versioned, checksummed
-  format (:mod:`fmus.state_format`); a state of another FMU or version, damaged or forged
-  bytes give fmi2Error and leave the instance exactly as it was.
+  format (:mod:`fmus.state_format`), the binary's own fields (FMI version, state machine state)
+  included: the one serialized form of an FMU state.
 """
 
 from __future__ import annotations
@@ -57,7 +64,7 @@ from typing import ClassVar
 from xml.etree.ElementTree import Element, ParseError, SubElement, iterparse
 
 import numpy as np
-from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
+from pythonfmu import Boolean, Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real, String
 from pythonfmu.enums import Fmi2Status
 from pythonfmu.default_experiment import DefaultExperiment
 
@@ -67,9 +74,15 @@ from observers.state import Leaves, StateError, capture, out_of_bounds, unchange
 
 from .definition import FmuDefinition, element_unit
 from .kinds import create_block
-from .state_format import pack, unpack
+from .state_format import StateFormatError, pack, unpack
 
-__all__ = ["BlockSlave", "InputMode", "FmuState", "CAPABILITIES"]
+__all__ = ["BlockSlave", "InputMode", "FmuState", "Refused", "CAPABILITIES"]
+
+
+class Refused(Exception):
+    """The slave refused an FMI call after checking it, and changed nothing (fmi2Error; the native
+    binary keeps the instance in its FMI state: the next legal call works).  Any other exception
+    of an FMI call is a failure (the binary's FMI error state)."""
 
 
 class InputMode(IntEnum):
@@ -110,12 +123,18 @@ class FmuState:
         self.identity, self.tree = identity, tree
 
 
+#: the sections of an FMU state's tree (``loader``: the native binary's fields, see get_fmu_state)
+_SECTIONS = {"time", "params", "inputs", "modes", "derivatives", "last_inputs", "block_error", "block", "initialized",
+             "loader"}
+
+
 @lru_cache(maxsize=None)
 def _guid(model_description: str) -> str:
-    """The GUID of the FMU unpacked around ``resources`` ("" when not run from an FMU)."""
+    """The token of the FMU unpacked around ``resources``: its GUID (FMI 2.0) or instantiationToken
+    (FMI 3.0); "" when not run from an FMU."""
     try:
         for _, element in iterparse(model_description, events=("start",)):
-            return element.get("guid", "")
+            return element.get("guid") or element.get("instantiationToken") or ""
     except (OSError, ParseError):
         pass
     return ""
@@ -147,6 +166,8 @@ class BlockSlave(Fmi2Slave):
     definition_file: ClassVar[str] = ""
     author = "obsfmu"
     license = "MIT"
+    #: the exception of refused calls, found here by the native binary's bridge
+    Refused: ClassVar[type] = Refused
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
@@ -245,27 +266,42 @@ class BlockSlave(Fmi2Slave):
         else:
             self._bad[name] = value
 
+    def _variable(self, vr, kind):
+        """The variable of ``vr``, of type ``kind``; :class:`Refused` otherwise."""
+        variable = self.vars.get(vr)
+        if variable is None:
+            raise Refused(f"value reference {vr} does not exist")
+        if not isinstance(variable, kind):
+            raise Refused(f"{variable.name} (value reference {vr}) is not a {kind.__name__} variable")
+        return variable
+
     def _check_writable(self, vrs, kind, values) -> None:
-        """Refuse a whole ``fmi2Set*`` call before any value is set (fmi2Error)."""
+        """Refuse a whole ``fmi2Set*`` call before any value is set (:class:`Refused`)."""
         fixed = []
         for vr, value in zip(vrs, values):
-            variable = self.vars.get(vr)
-            if variable is None:
-                raise KeyError(f"value reference {vr} does not exist")
-            if not isinstance(variable, kind):
-                raise TypeError(f"{variable.name} is not a {kind.__name__} variable")
+            variable = self._variable(vr, kind)
             if variable.setter is None or variable.causality == Fmi2Causality.output:
-                raise ValueError(f"{variable.name} is an output; outputs cannot be set")
+                raise Refused(f"{variable.name} is an output; outputs cannot be set")
             if variable.causality == Fmi2Causality.parameter:
                 if self._stepping:
                     fixed.append(f"{variable.name} (in use: {variable.getter():g})")
                 elif kind is Integer and int(value) not in InputMode._value2member_map_:
-                    raise ParameterError(f"{variable.name}: {value} is not 0 (hold), 1 (extrapolate) or "
-                                         f"2 (interpolate); keeping {variable.getter()}")
+                    raise Refused(f"{variable.name}: {value} is not 0 (hold), 1 (extrapolate) or "
+                                  f"2 (interpolate); keeping {variable.getter()}")
         if fixed:
-            raise ParameterError(f"{', '.join(fixed)}: parameters are fixed after initialization "
-                                 f"(fmi2ExitInitializationMode) and keep their values; set them before, "
-                                 f"or reset the instance")
+            raise Refused(f"{', '.join(fixed)}: parameters are fixed after initialization "
+                          f"(fmi2ExitInitializationMode) and keep their values; set them before, "
+                          f"or reset the instance")
+
+    def _read(self, read, kind, vrs) -> list:
+        """pythonfmu's getter ``read`` of ``vrs``; a value reference that does not exist or is not a
+        ``kind`` variable is refused (:class:`Refused`), any other exception is a bug."""
+        try:
+            return read(self, vrs)
+        except (KeyError, TypeError):
+            for vr in vrs:
+                self._variable(vr, kind)
+            raise
 
     def set_real(self, vrs, values):
         elements = self._input_elements
@@ -288,6 +324,26 @@ class BlockSlave(Fmi2Slave):
     def set_integer(self, vrs, values):
         self._check_writable(vrs, Integer, values)
         super().set_integer(vrs, values)
+
+    def set_boolean(self, vrs, values):
+        self._check_writable(vrs, Boolean, values)
+        super().set_boolean(vrs, values)
+
+    def set_string(self, vrs, values):
+        self._check_writable(vrs, String, values)
+        super().set_string(vrs, values)
+
+    def get_real(self, vrs):
+        return self._read(Fmi2Slave.get_real, Real, vrs)
+
+    def get_integer(self, vrs):
+        return self._read(Fmi2Slave.get_integer, Integer, vrs)
+
+    def get_boolean(self, vrs):
+        return self._read(Fmi2Slave.get_boolean, Boolean, vrs)
+
+    def get_string(self, vrs):
+        return self._read(Fmi2Slave.get_string, String, vrs)
 
     # ------------------------------------------------------------------ the block
     def _stateless(self) -> bool:
@@ -320,13 +376,12 @@ class BlockSlave(Fmi2Slave):
         return block
 
     def _try_block(self) -> Block | None:
+        """The block of the parameters, built once; None (the reason in ``_block_error``) if they define none."""
         if self._block is None and self._block_error is None:
             try:
                 self._use_block(self._new_block(self._params))
-            except Exception as exc:  # a bad parameter set must not crash the host
+            except Exception as exc:  # a bad parameter set must not crash the host; callers report it
                 self._block_error = f"{type(exc).__name__}: {exc}"
-                self.log(f"cannot build the block from the parameters: {self._block_error}",
-                         Fmi2Status.error)
         return self._block
 
     def _use_block(self, block: Block | None) -> None:
@@ -344,13 +399,13 @@ class BlockSlave(Fmi2Slave):
         if self._outputs_cache is None:
             block = self._try_block()
             if block is None:
-                return float("nan")
+                raise Refused(f"output {port} cannot be computed: the parameters do not define a valid block: "
+                              f"{self._block_error}")
             try:
                 self._outputs_cache = block.outputs(self._time, self._inputs)
-            except Exception as exc:
-                self.log(f"output {port} at t={self._time:g}: {type(exc).__name__}: {exc}",
-                         Fmi2Status.error)
-                return float("nan")
+            except _NUMERICAL_FAULTS as exc:       # anything else is a bug: a failure
+                raise Refused(f"output {port} at t={self._time:g} cannot be computed: "
+                              f"{type(exc).__name__}: {exc}") from None
         return float(self._outputs_cache[port][index])
 
     def _output_fault(self, outputs: dict[str, np.ndarray], bound: float) -> str | None:
@@ -388,28 +443,35 @@ class BlockSlave(Fmi2Slave):
     # ------------------------------------------------------------------ FMI calls
     def setup_experiment(self, start_time, stop_time=None, tolerance=None):
         if not math.isfinite(start_time):
-            raise ValueError(f"start time {start_time} is not finite")
+            raise Refused(f"start time {start_time} is not finite")
         self._time = float(start_time)
 
     def exit_initialization_mode(self):
+        """Start stepping with the block of the parameters; :class:`Refused` (naming the parameters,
+        nothing changed: still in initialization mode) when they define no valid block or its first
+        outputs are not finite or beyond its ``magnitude_bound``."""
+        block = self._block
+        if block is None:
+            try:
+                block = self._new_block(self._params)
+            except Exception as exc:  # nothing changed: a refusal, whatever the block raised
+                raise Refused(f"the parameters do not define a valid block: {type(exc).__name__}: {exc}") from None
+        bound, outputs = block.magnitude_bound, None
+        if all(within(value, bound) for value in self._inputs.values()):  # else the first step names them
+            try:
+                outputs = block.outputs(self._time, self._inputs)
+                fault = self._output_fault(outputs, bound)
+            except _NUMERICAL_FAULTS as exc:
+                fault = f"computing them raised {type(exc).__name__}: {exc}"
+            if fault:
+                raise Refused(f"the first outputs are not usable: {fault} ({self._suspects()})")
+        # nothing can fail from here on
+        if block is not self._block:
+            self._use_block(block)
         self._remember_inputs(self._time)
         self._stepping = True
-        block = self._try_block()
-        if block is None:
-            raise ParameterError(f"the parameters do not define a valid block: {self._block_error}")
-        if self._bad:
-            return                              # the first step refuses the inputs, naming them
-        try:
-            outputs = block.outputs(self._time, self._inputs)
-            fault = self._output_fault(outputs, self._bound)
-        except _NUMERICAL_FAULTS as exc:
-            fault = f"computing them raised {type(exc).__name__}: {exc}"
-        else:
+        if outputs is not None:
             self._outputs_cache = outputs
-        if fault:
-            self._use_block(None)
-            self._block_error = f"the first outputs are not usable: {fault} ({self._suspects()})"
-            raise ParameterError(self._block_error)
 
     @property
     def last_successful_time(self) -> float:
@@ -427,7 +489,7 @@ class BlockSlave(Fmi2Slave):
         elements, derivatives = self._input_elements, self._derivatives
         unknown = [vr for vr in vrs if vr not in elements]
         if unknown:
-            raise ValueError(f"value reference {unknown[0]} is not a real input")
+            raise Refused(f"value reference {unknown[0]} is not a real input")
         for vr, order, value in zip(vrs, orders, values):
             if order != 1:
                 self.log(f"input derivative of order {order} ignored (only order 1 is used)", Fmi2Status.warning)
@@ -438,6 +500,15 @@ class BlockSlave(Fmi2Slave):
             derivatives[port][index] = value
             if not -self._bound <= value <= self._bound or self._bad:
                 self._flag(f"der({name})", value)
+
+    def clear_input_derivatives(self, vrs) -> None:
+        """Forget the input derivatives of the ports of ``vrs`` (the FMI 3.0 binary: the slopes it gave a
+        step from the intermediate update belong to that step; a discarded step gives them back)."""
+        for vr in vrs:
+            port, _, _ = self._input_elements[vr]
+            if self._derivatives.pop(port, None) is not None:
+                for name in self._element_names[port]:
+                    self._bad.pop(f"der({name})", None)
 
     def _remember_inputs(self, time: float, step: float = 0.0, ends: dict[str, np.ndarray] | None = None):
         """Record each input with the time it belongs to, after a step of length ``step``.
@@ -556,12 +627,23 @@ class BlockSlave(Fmi2Slave):
     # ------------------------------------------------------------------ FMU state
     @property
     def identity(self) -> str:
-        """``"<model name> <GUID>"``: the FMU a state belongs to."""
+        """``"<model name> <GUID or instantiationToken>"``: the FMU a state belongs to."""
         guid = _guid(str(Path(self.resources).parent / "modelDescription.xml"))
         return f"{self.definition.model_name} {guid}"
 
-    def get_fmu_state(self) -> FmuState:
-        """Everything that evolves, as plain data: time, parameters, inputs, block state, history."""
+    def _own(self, state) -> FmuState:
+        """``state`` if it is a state of this FMU; :class:`Refused` otherwise."""
+        if not isinstance(state, FmuState):
+            raise Refused(f"not an FMU state of {self.definition.model_name} (a {type(state).__name__})")
+        if state.identity != self.identity:
+            raise Refused(f"this state belongs to another FMU ({state.identity!r}), not to {self.identity!r}")
+        return state
+
+    def get_fmu_state(self, loader: dict | None = None) -> FmuState:
+        """Everything that evolves, as plain data: time, parameters, inputs, block state, history,
+        whether initialization is over, and ``loader``: the native binary's own fields (its FMI
+        version and state machine state, ``{"fmi": 2, "state": "stepComplete"}``), kept in the state
+        and its bytes for the binary (:meth:`loader_fields`); None without the binary."""
         block = None
         if self._block is not None:
             if self._snapshot is None:
@@ -577,19 +659,26 @@ class BlockSlave(Fmi2Slave):
             "last_inputs": {name: (value, at) for name, (value, at) in self._last_inputs.items()},
             "block_error": self._block_error,
             "block": block,
+            "initialized": self._stepping,
+            "loader": None if loader is None else dict(loader),
         })
 
+    def loader_fields(self, state) -> tuple[dict | None, float, bool]:
+        """The native binary's fields of a state of this FMU, with its time and whether it was saved
+        after initialization (the binary validates them against its state machine)."""
+        tree = self._own(state).tree
+        return tree["loader"], tree["time"], tree["initialized"]
+
     def set_fmu_state(self, state) -> None:
-        """Restore a state of this FMU; anything else raises (fmi2Error) and changes nothing."""
-        if not isinstance(state, FmuState):
-            raise StateError(f"not an FMU state of {self.definition.model_name} (a {type(state).__name__})")
-        if state.identity != self.identity:
-            raise StateError(f"this state belongs to another FMU ({state.identity!r}), not to {self.identity!r}")
-        tree = state.tree
-        self._check_tree(tree)
-        block = snapshot = outputs = None
-        if tree["block"] is not None:
-            block, snapshot, outputs = self._restored_block(tree)
+        """Restore a state of this FMU; anything else is refused (:class:`Refused`) and changes nothing."""
+        tree = self._own(state).tree
+        try:
+            self._check_tree(tree)
+            block = snapshot = outputs = None
+            if tree["block"] is not None:
+                block, snapshot, outputs = self._restored_block(tree)
+        except StateError as exc:
+            raise Refused(str(exc)) from None
         # nothing can fail from here on
         for name in ("params", "inputs", "modes"):          # the variable getters hold these arrays
             for key, values in tree[name].items():
@@ -598,13 +687,15 @@ class BlockSlave(Fmi2Slave):
         self._last_inputs = {name: (np.array(value, dtype=float), float(at))
                              for name, (value, at) in tree["last_inputs"].items()}
         self._time = tree["time"]
+        self._stepping = tree["initialized"]
         self._use_block(block)
         self._block_error = tree["block_error"] if block is None else None
         self._snapshot, self._outputs_cache = snapshot, outputs
 
-    def _restored_block(self, tree: dict) -> tuple[Block, tuple[dict, Leaves], dict]:
+    def _restored_block(self, tree: dict) -> tuple[Block, tuple[dict, Leaves], dict | None]:
         """The block with the saved state, its snapshot and outputs, all checked; the live block is
-        changed only if all is well."""
+        changed only if all is well.  The outputs are None (computed when read) when the saved inputs
+        are not usable: a state saved after a bad input was set is a state like any other."""
         live = self._block
         same = live is not None and all(np.array_equal(tree["params"][name], value)
                                         for name, value in self._params.items())
@@ -621,8 +712,10 @@ class BlockSlave(Fmi2Slave):
             leaves, bound = Leaves(), block.magnitude_bound
             snapshot = (capture(block, leaves), leaves)
             fault = self._state_fault(*snapshot, None, bound)
-            outputs = block.outputs(tree["time"], tree["inputs"])
-            fault = fault or self._output_fault(outputs, bound)
+            outputs = None                 # inputs that are not usable: the next step refuses, naming them
+            if all(within(value, bound) for value in tree["inputs"].values()):
+                outputs = block.outputs(tree["time"], tree["inputs"])
+                fault = fault or self._output_fault(outputs, bound)
             if fault:
                 raise StateError(f"the state is not usable: {fault}")
         except Exception as exc:
@@ -639,8 +732,7 @@ class BlockSlave(Fmi2Slave):
             if not condition:
                 raise StateError(f"not a state of {self.definition.model_name}: {what}")
 
-        require(type(tree) is dict and set(tree) == {"time", "params", "inputs", "modes", "derivatives",
-                                                      "last_inputs", "block_error", "block"}, "wrong sections")
+        require(type(tree) is dict and set(tree) == _SECTIONS, "wrong sections")
         require(type(tree["time"]) is float and math.isfinite(tree["time"]), "time")
         for section, store, dtype in (("params", self._params, np.float64), ("inputs", self._inputs, np.float64),
                                       ("modes", self._modes, np.int64)):
@@ -661,17 +753,27 @@ class BlockSlave(Fmi2Slave):
                     and type(entry[1]) is float and math.isfinite(entry[1]), f"last_inputs {name}")
         require(tree["block_error"] is None or type(tree["block_error"]) is str, "block_error")
         require(tree["block"] is None or type(tree["block"]) is dict, "block")
+        require(type(tree["initialized"]) is bool, "initialized")
+        require(not tree["initialized"] or (tree["block"] is not None and tree["block_error"] is None),
+                "initialized without a block")
+        loader = tree["loader"]
+        require(loader is None or (type(loader) is dict and set(loader) == {"fmi", "state"}
+                                   and type(loader["fmi"]) is int and type(loader["state"]) is str
+                                   and len(loader["state"]) < 32), "loader")
 
     def serialize_fmu_state(self, state) -> bytes:
-        """The bytes of ``state`` (:mod:`fmus.state_format`)."""
-        if not isinstance(state, FmuState) or state.identity != self.identity:
-            raise StateError(f"not an FMU state of {self.definition.model_name}")
+        """The bytes of ``state`` (:mod:`fmus.state_format`): the one serialized form of an FMU state."""
+        state = self._own(state)
         return pack(state.identity, state.tree)
 
     def deserialize_fmu_state(self, data: bytes) -> FmuState:
-        """An FMU state from bytes of :meth:`serialize_fmu_state`; anything else raises (fmi2Error)."""
-        tree = unpack(data, self.identity)
-        self._check_tree(tree)
+        """An FMU state from bytes of :meth:`serialize_fmu_state`; anything else is refused
+        (:class:`Refused`: format, version, identity, checksum, then every section checked)."""
+        try:
+            tree = unpack(data, self.identity)
+            self._check_tree(tree)
+        except (StateFormatError, StateError) as exc:
+            raise Refused(str(exc)) from None
         return FmuState(self.identity, tree)
 
     # ------------------------------------------------------------------ modelDescription

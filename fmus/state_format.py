@@ -1,11 +1,13 @@
 """The serialized FMU state: an explicit, versioned format that can only ever produce data.
 
-``fmi2SerializeFMUstate`` writes, and ``fmi2DeSerializeFMUstate`` reads, these bytes
-(little-endian throughout)::
+``fmi2SerializeFMUstate`` / ``fmi3SerializeFMUState`` write, and the deserialize calls read, these
+bytes (little-endian throughout) -- the one serialized form of an obsfmu FMU state, for both FMI
+versions: the native binary keeps its own fields (FMI version, state machine state) in the payload
+(:meth:`fmus.slave.BlockSlave.get_fmu_state`) and validates them when the state comes back::
 
     header   magic b"OBSFMUst" | format version u16 | 0 u16 | identity length u32 | payload length u64
     digest   SHA-256 of header + identity + payload (32 bytes)
-    identity UTF-8: "<model name> <GUID of the FMU>"
+    identity UTF-8: "<model name> <GUID (FMI 2.0) or instantiationToken (FMI 3.0) of the FMU>"
     payload  one value, encoded as below
 
 A value is a one-byte tag and its content:
@@ -39,7 +41,8 @@ import numpy as np
 __all__ = ["StateFormatError", "FORMAT_VERSION", "MAGIC", "pack", "unpack", "encode", "decode"]
 
 MAGIC = b"OBSFMUst"
-FORMAT_VERSION = 1
+#: 2: the native binary's fields and the slave's "initialized" are part of the state
+FORMAT_VERSION = 2
 _HEADER = struct.Struct("<8sHHIQ")
 _DIGEST = 32
 _MAX_IDENTITY = 4096

@@ -40,6 +40,22 @@ def every_fmu3(build_dir):
 
 
 @pytest.fixture(scope="session")
+def faulty_fmus(build_dir):
+    """``{2: path, 3: path}``: paper 000's generator plant (``Ts = 1e-3``) as FMI 2.0 and 3.0 FMUs whose
+    user function ``f`` has a deliberate bug at ``y = 0`` (``tests/faulty_user_function.py``): a step
+    with ``x0[1] = 0`` fails inside the slave -- the FMI error state, which no refused call reaches."""
+    from pathlib import Path
+
+    from fmus.builder import build_fmu
+    from fmus.kinds.gpebo import generator_plant_definition
+
+    module = Path(__file__).with_name("faulty_user_function.py")
+    definition = generator_plant_definition("faulty_plant", Ts=1e-3, f="faulty_user_function:f")
+    return {version: build_fmu(definition, build_dir / "faulty" / f"fmi{version}", [module], version)
+            for version in (2, 3)}
+
+
+@pytest.fixture(scope="session")
 def kind_fmus(build_dir):
     """``kind -> (scenario step, path)``: one FMU of every block kind of the scenarios, built once."""
     from faults_support import one_per_kind

@@ -2,13 +2,15 @@
 
 :class:`Probe` instantiates an FMU with a logger that keeps every message, records the status
 of each FMI call instead of raising, and reads the complete state as bytes
-(``fmi2SerializeFMUstate``) so that tests can check that a refused call changed nothing.
+(``fmi2SerializeFMUstate``) so that tests can check that a refused call changed nothing (the bytes
+hold the binary's state machine state too: :func:`split_state`).
 :func:`gauss_seidel` drives a scenario's instances in order, each consumer interpolating its
 inputs from the producers' outputs (what the project's master does with ``--coupling linear``).
 """
 
 from __future__ import annotations
 
+import struct
 from functools import lru_cache
 
 import numpy as np
@@ -18,9 +20,20 @@ from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFr
                        fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
 
 from fmus.scenarios import SCENARIOS, ensure_fmus
+from fmus.state_format import decode, encode
 
 OK, WARNING, DISCARD, ERROR, FATAL = 0, 1, 2, 3, 4
 BAD_VALUES = [float("nan"), float("inf"), -float("inf"), 1e308, -1e308]
+
+
+def split_state(data: bytes) -> tuple[str, bytes]:
+    """FMU-state bytes -> (the FMI state machine state the binary kept in them, the identity and the
+    encoded rest of the state).  The header is 24 bytes, then a 32-byte digest and the identity."""
+    size = struct.unpack_from("<I", data, 12)[0]
+    tree = decode(data[56 + size:])
+    loader = tree.pop("loader")
+    assert loader["fmi"] == 2, loader
+    return loader["state"], data[56:56 + size] + encode(tree)
 
 
 def one_per_kind(build_dir) -> dict[str, tuple[float, object]]:
@@ -136,6 +149,11 @@ class Probe:
         data = bytes(self.slave.serializeFMUstate(state))
         self.slave.freeFMUstate(state)
         return data
+
+    def assert_unchanged(self, before: bytes, machine: str = "stepComplete") -> None:
+        """The state is bit for bit the one of ``before``, but the state machine is in ``machine``."""
+        now, rest = split_state(self.state_bytes())
+        assert (now, rest) == (machine, split_state(before)[1]), (now, machine)
 
     def restore_bytes(self, data: bytes, t: float | None = None) -> int:
         """Deserialise and set ``data`` (a state at time ``t``); the status of the failing call or OK."""

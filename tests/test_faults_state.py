@@ -187,6 +187,16 @@ FORGERIES = {
         {k: np.full_like(v, 1e300) for k, v in list(tree["params"].items())[:1]}), "parameters must be finite"),
     "another section": (lambda tree: tree.update({"code": "import os"}), "wrong sections"),
     "time not finite": (lambda tree: tree.update({"time": float("nan")}), "time"),
+    "initialized without a block": (lambda tree: tree.update({"block": None}), "initialized without a block"),
+    # the binary's fields, checked by the binary (the one format holds them)
+    "loader fields of the FMI 3.0 binary": (lambda tree: tree.update({"loader": {"fmi": 3, "state": "stepMode"}}),
+                                            "saved by the FMI 3.0 binary of this FMU; this is the FMI 2.0 binary"),
+    "unknown state machine state": (lambda tree: tree.update({"loader": {"fmi": 2, "state": "running"}}),
+                                    "the state machine state running of the state is unknown"),
+    "state machine state before initialization": (
+        lambda tree: tree.update({"loader": {"fmi": 2, "state": "instantiated"}}),
+        "state machine state instantiated, but the slave was initialized"),
+    "no loader fields": (lambda tree: tree.update({"loader": None}), "holds no state machine fields"),
 }
 
 
@@ -197,6 +207,26 @@ def test_forged_states_in_the_right_format_are_refused(live, kind, forgery):
     probe, step, good = live(kind)
     change, expected = FORGERIES[forgery]
     refused(probe, step, forged(probe, good, change), expected)
+
+
+def test_a_state_brings_its_state_machine_state_and_whether_parameters_are_fixed(live, kind_fmus):
+    """A state saved while stepping, restored into an instance still in initialization mode: stepping
+    goes on and parameters are fixed; a state saved in initialization mode, restored into a running
+    instance: parameters can be set again and initialization ends anew."""
+    _, step, stepping_bytes = live("luenberger-observer")
+    fresh = Probe(kind_fmus["luenberger-observer"][1], "fresh", init=False)
+    initializing_bytes = fresh.state_bytes()
+    assert fresh.restore_bytes(stepping_bytes, payload(stepping_bytes)["time"]) == OK
+    mark = len(fresh.log)
+    assert fresh.set("N[1]", 3.0) == ERROR and "parameters are fixed after initialization" in fresh.messages(mark)
+    fresh.drive_inputs(int(round(fresh.t / step)), step)
+    assert fresh.step(step) == OK, fresh.messages(mark)
+    assert fresh.restore_bytes(initializing_bytes, 0.0) == OK
+    assert fresh.set("N[1]", fresh.get(["N[1]"])[0]) == OK
+    assert fresh.call(fresh.slave.exitInitializationMode) == OK, fresh.messages(mark)
+    fresh.drive_inputs(0, step)
+    assert fresh.step(step) == OK, fresh.messages(mark)
+    fresh.free()
 
 
 # ------------------------------------------------------------------------------ pickles that run code

@@ -3,19 +3,24 @@
 Every (state, call) pair of the table in docs/fmi3.md, on the ship plant's FMI 3.0 binary, called
 through ctypes (the same binary as in any host): an allowed call is not refused; a refused one
 returns fmi3Error, logs the call and the reason, and changes nothing -- a probe after it passes only
-in the expected state.  Then the refused arguments, the intermediate update mode, a failure inside
-the slave (-> terminated), a wrong instantiationToken and damaged serialized states.
+in the expected state.  Then the refused arguments, the intermediate update mode, calls the slave
+refuses (the state is kept) against a call that fails inside it (a bug in a user's function:
+-> terminated), a wrong instantiationToken, damaged, foreign and forged serialized states.
 """
 
 import math
-from ctypes import byref, c_bool, c_double, c_float, c_int32, c_size_t, c_uint32, c_void_p
+import struct
+from ctypes import c_double, c_float, c_int32, c_uint32
 
 import pytest
 from fmpy import extract, read_model_description
 from fmpy.fmi1 import FMICallException
+from fmpy.fmi2 import FMU2Slave
 from fmpy.fmi3 import FMU3Slave
 
-OK, WARNING, DISCARD, ERROR = 0, 1, 2, 3
+from fmi3_support import DISCARD, ERROR, OK, WARNING, Raw
+from fmus.state_format import decode, pack
+
 STATES = ["instantiated", "initializationMode", "stepMode", "terminated"]
 EVERY = set(STATES)
 
@@ -45,116 +50,6 @@ ALLOWED = {
 #: where an allowed call leads
 LEADS_TO = {"enterInitializationMode": "initializationMode", "exitInitializationMode": "stepMode",
             "terminate": "terminated", "reset": "instantiated"}
-
-
-class Raw:
-    """An FMI 3.0 instance whose calls return their status (fmpy's wrappers would raise)."""
-
-    def __init__(self, path, directory, name="plant", intermediate=None, required=(), state="x", parameter="x0"):
-        self.description = read_model_description(str(path))
-        self.vr = {v.name: v.valueReference for v in self.description.modelVariables}
-        self.state, self.parameter = state, parameter  # an output array of 2, a parameter array of 2
-        self.messages = []
-        self.slave = FMU3Slave(guid=self.description.instantiationToken, unzipDirectory=directory,
-                               instanceName=name, modelIdentifier=self.description.coSimulation.modelIdentifier)
-        self.slave.instantiate(loggingOn=True, logMessage=self._log, intermediateUpdate=intermediate,
-                               requiredIntermediateVariables=list(required))
-        self.f = self.slave._functions
-        self.c = self.slave.component
-        self.time = 0.0
-        self.last = c_double(float("nan"))
-
-    def _log(self, environment, status, category, message):
-        self.messages.append(message.decode())
-
-    def refs(self, *names):
-        return (c_uint32 * len(names))(*(self.vr[n] for n in names))
-
-    def step(self, t=None, h=1e-3):
-        flags = [c_bool() for _ in range(3)]
-        t = self.time if t is None else t
-        status = self.f["fmi3DoStep"](self.c, t, h, True, *map(byref, flags), byref(self.last))
-        if status <= WARNING:
-            self.time = t + h
-        return status
-
-    def get(self, name, count):
-        values = (c_double * count)()
-        return self.f["fmi3GetFloat64"](self.c, self.refs(name), 1, values, count), list(values)
-
-    def set(self, name, values):
-        return self.f["fmi3SetFloat64"](self.c, self.refs(name), 1, (c_double * len(values))(*values), len(values))
-
-    def call(self, name: str) -> int:
-        f, c, empty = self.f, self.c, (c_uint32 * 1)()
-        if name == "enterInitializationMode":
-            return f["fmi3EnterInitializationMode"](c, False, 0.0, 0.0, False, 0.0)
-        if name == "exitInitializationMode":
-            return f["fmi3ExitInitializationMode"](c)
-        if name == "doStep":
-            return self.step()
-        if name == "terminate":
-            return f["fmi3Terminate"](c)
-        if name == "reset":
-            status = f["fmi3Reset"](c)
-            self.time = 0.0 if status <= WARNING else self.time
-            return status
-        if name == "getFloat64":
-            return self.get(self.state, 2)[0]
-        if name == "getInt32":
-            return f["fmi3GetInt32"](c, self.refs("u_interpolation"), 1, (c_int32 * 1)(), 1)
-        if name == "getBoolean":
-            return f["fmi3GetBoolean"](c, empty, 0, (c_bool * 1)(), 0)
-        if name == "setFloat64:input":
-            return self.set("u", [0.5])
-        if name == "setFloat64:parameter":
-            return self.set(self.parameter, [0.1, 0.2])
-        if name == "setInt32":
-            return f["fmi3SetInt32"](c, self.refs("u_interpolation"), 1, (c_int32 * 1)(1), 1)
-        if name in ("getFMUState", "setFMUState", "serializedFMUStateSize"):
-            state = c_void_p()
-            status = f["fmi3GetFMUState"](c, byref(state))
-            if name == "setFMUState" and status <= WARNING:
-                status = f["fmi3SetFMUState"](c, state)
-            elif name == "serializedFMUStateSize" and status <= WARNING:
-                status = f["fmi3SerializedFMUStateSize"](c, state, byref(c_size_t()))
-            if state:
-                f["fmi3FreeFMUState"](c, byref(state))
-            return status
-        if name == "enterEventMode":
-            return f["fmi3EnterEventMode"](c)
-        if name == "enterStepMode":
-            return f["fmi3EnterStepMode"](c)
-        if name == "enterConfigurationMode":
-            return f["fmi3EnterConfigurationMode"](c)
-        if name == "getOutputDerivatives":
-            return f["fmi3GetOutputDerivatives"](c, self.refs("y"), 1, (c_int32 * 1)(1), (c_double * 1)(), 1)
-        if name == "getDirectionalDerivative":
-            return f["fmi3GetDirectionalDerivative"](c, self.refs("y"), 1, self.refs("u"), 1, (c_double * 1)(1.0), 1,
-                                                     (c_double * 1)(), 1)
-        if name == "updateDiscreteStates":
-            flags = [c_bool() for _ in range(5)]
-            return f["fmi3UpdateDiscreteStates"](c, *map(byref, flags), byref(c_double()))
-        raise KeyError(name)
-
-    def reach(self, state: str) -> None:
-        for call in {"instantiated": [], "initializationMode": ["enterInitializationMode"],
-                     "stepMode": ["enterInitializationMode", "exitInitializationMode"],
-                     "terminated": ["enterInitializationMode", "exitInitializationMode", "doStep", "terminate"]}[state]:
-            assert self.call(call) <= WARNING, (call, self.messages)
-
-    def is_in(self, state: str) -> bool:
-        """A probe that only ``state`` passes (the state machine's state)."""
-        if state == "instantiated":
-            return self.call("enterInitializationMode") == OK
-        if state == "initializationMode":
-            return self.call("exitInitializationMode") == OK
-        if state == "stepMode":
-            return self.step() == OK
-        return self.call("setFloat64:input") == ERROR and self.call("getFloat64") == OK and self.step() == ERROR
-
-    def free(self):
-        self.f["fmi3FreeInstance"](self.c)
 
 
 @pytest.fixture(scope="module")
@@ -224,13 +119,29 @@ def test_refused_values_calls(plant):
     raw.free()
 
 
-def test_a_failure_in_the_slave_terminates(plant):
+def test_calls_the_slave_refuses_keep_the_state(plant):
+    """fmi3Error from the slave for a call it refused (it changed nothing): the FMU stays where it was."""
     raw = Raw(*plant)
     raw.reach("initializationMode")
     status = raw.f["fmi3SetInt32"](raw.c, raw.refs("u_interpolation"), 1, (c_int32 * 1)(7), 1)
-    assert status == ERROR and any("u_interpolation" in m for m in raw.messages)
+    assert status == ERROR and "u_interpolation: 7 is not 0 (hold), 1 (extrapolate) or 2" in raw.messages[-1]
+    assert raw.is_in("initializationMode")
+    raw.free()
+
+
+def test_a_failure_in_the_slave_terminates(faulty_fmus, tmp_path):
+    """A step that fails inside the slave (a bug in the user's function; the slave logs it at Error level
+    and returns, so fmi3Error by the status rule) leads to terminated; reset (or a saved state) goes on."""
+    path = faulty_fmus[3]
+    raw = Raw(path, extract(str(path), str(tmp_path)), name="faulty")
+    raw.reach("initializationMode")
+    assert raw.set("x0", [0.0, -0.2]) == OK
+    assert raw.call("exitInitializationMode") == OK
+    assert raw.step() == ERROR
+    assert "RuntimeError: deliberate bug of the test FMU: f(0) is not implemented (a bug: please report)" \
+        in raw.messages[-1]
     assert raw.is_in("terminated")
-    assert raw.call("reset") == OK and raw.is_in("instantiated")  # the way on: reset (or a saved state)
+    assert raw.call("reset") == OK and raw.is_in("instantiated")
     raw.free()
 
 
@@ -292,12 +203,57 @@ def test_wrong_token_and_damaged_states(plant):
     data[len(data) // 2] ^= 0x10
     with pytest.raises(FMICallException, match="error"):
         raw.slave.deserializeFMUState(bytes(data))
-    assert "damaged (checksum mismatch)" in raw.messages[-1]
-    data[len(data) // 2] ^= 0x10
-    data[7] = 1  # the FMI 2.0 loader's magic: another version's state
-    with pytest.raises(FMICallException, match="error"):
-        raw.slave.deserializeFMUState(bytes(data))
-    assert "not a serialized state of an obsfmu FMU of this version" in raw.messages[-1]
+    assert "checksum mismatch: the state bytes are damaged" in raw.messages[-1]
     assert raw.is_in("stepMode")
     raw.slave.freeFMUState(state)
+    raw.free()
+
+
+def fmi2_state_of_the_ship_plant(ship_fmus) -> bytes:
+    description = read_model_description(str(ship_fmus["ship_plant"]))
+    fmu2 = FMU2Slave(guid=description.guid, unzipDirectory=extract(str(ship_fmus["ship_plant"])), instanceName="p2",
+                     modelIdentifier="ship_plant")
+    fmu2.instantiate()
+    fmu2.setupExperiment(startTime=0.0)
+    fmu2.enterInitializationMode()
+    fmu2.exitInitializationMode()
+    state = fmu2.getFMUstate()
+    data = bytes(fmu2.serializeFMUstate(state))
+    fmu2.freeFMUstate(state)
+    fmu2.freeInstance()
+    return data
+
+
+def tree_of(data: bytes) -> tuple[str, dict]:
+    """The identity and the tree of serialized state bytes (fmus/state_format.py: 24-byte header, digest)."""
+    size = struct.unpack_from("<I", data, 12)[0]
+    return data[56:56 + size].decode(), decode(data[56 + size:])
+
+
+def test_states_of_the_fmi2_fmu_and_forged_loader_fields_are_refused(plant, ship_fmus):
+    """One serialized format for both FMI versions: the FMI 2.0 FMU's state is another FMU's (its GUID is
+    not this instantiationToken); a state of this FMU whose loader fields were forged (valid checksum) is
+    refused by the loader: another FMI version's, an unknown state, a state machine state that does not
+    agree with the slave's initialization, no loader fields.  Nothing changes; the FMU keeps stepping."""
+    raw = Raw(*plant)
+    raw.reach("stepMode")
+    state = raw.slave.getFMUState()
+    identity, tree = tree_of(bytes(raw.slave.serializeFMUState(state)))
+    raw.slave.freeFMUState(state)
+    assert tree["loader"] == {"fmi": 3, "state": "stepMode"} and tree["initialized"] is True
+    assert identity == f"ship_plant {raw.description.instantiationToken}"
+    forgeries = {
+        "belongs to another FMU": fmi2_state_of_the_ship_plant(ship_fmus),
+        "was saved by the FMI 2.0 binary of this FMU; this is the FMI 3.0 binary": {"fmi": 2, "state": "stepMode"},
+        "the state machine state stepComplete of the state is unknown": {"fmi": 3, "state": "stepComplete"},
+        "state machine state initializationMode, but the slave was initialized":
+            {"fmi": 3, "state": "initializationMode"},
+        "the state holds no state machine fields": None,
+    }
+    for message, forged in forgeries.items():
+        data = forged if isinstance(forged, bytes) else pack(identity, {**tree, "loader": forged})
+        with pytest.raises(FMICallException, match="error"):
+            raw.slave.deserializeFMUState(data)
+        assert message in raw.messages[-1], raw.messages[-1]
+        assert raw.is_in("stepMode")
     raw.free()

@@ -13,6 +13,11 @@
  *   - status rule: a call returns the worst of its own result and of the levels the slave
  *     logged during the call, capped at fmi2Error (never fmi2Fatal); a Python exception is
  *     fmi2Error with its message logged; do_step() returning False is fmi2Discard,
+ *   - refused or failed: an exception of the slave class's `Refused` type means the slave refused
+ *     the call and changed nothing; refused() tells the loader so, which then keeps the instance's
+ *     state (any other exception, or an error-level message, is a failure: docs/faults.md),
+ *   - FMU states hold the loader's fields (ObsfmuMachine): get_fmu_state(loader) stores them,
+ *     loader_fields(state) gives them back; the serialized form is the slave's, one format,
  *   - the slave's code is the FMU's own: the bundled package resources/<package>/ (named after
  *     the hash of the bundled code) is imported by obsfmu_bootstrap.py, never via sys.path.
  *
@@ -21,10 +26,12 @@
  *   exit_initialization_mode(), terminate(), do_step(t, h) -> bool,
  *   get_real/get_integer/get_boolean/get_string(vrs) -> list,
  *   set_real/set_integer/set_boolean/set_string(vrs, values),
- *   set_real_input_derivatives(vrs, orders, values),
- *   get_fmu_state() -> obj, set_fmu_state(obj),
+ *   set_real_input_derivatives(vrs, orders, values), clear_input_derivatives(vrs),
+ *   get_fmu_state(loader={"fmi": 2|3, "state": name}) -> obj, set_fmu_state(obj),
+ *   loader_fields(obj) -> (loader dict or None, time, initialized),
  *   serialize_fmu_state(obj) -> bytes, deserialize_fmu_state(bytes) -> obj,
- *   log_queue: list of messages with .status, .category, .msg (drained after each call).
+ *   log_queue: list of messages with .status, .category, .msg (drained after each call);
+ *   class attribute Refused: the exception type of refused calls.
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
@@ -33,6 +40,7 @@
 
 typedef struct {
     PyObject *slave_class;
+    PyObject *refusal;  /* slave_class.Refused: the exception of a refused call (NULL: none) */
     PyObject *instance;
     PyObject *strings; /* keeps the strings returned by fmi2GetString alive */
     fmi2CallbackFunctions callbacks;
@@ -40,6 +48,7 @@ typedef struct {
     char *resources;
     int visible;
     int logging_on;
+    int refused;        /* the last call returned fmi2Error because the slave refused it */
 } Component;
 
 /* ------------------------------------------------------------------ logging */
@@ -85,17 +94,22 @@ static fmi2Status drain_log(Component *c)
     return worst;
 }
 
-/* Log the pending Python exception as fmi2Error and clear it. */
+/* Log the pending Python exception as fmi2Error and clear it; a refusal (the slave's Refused) is
+ * logged with its message alone and marked in c->refused, anything else names the exception type. */
 static fmi2Status python_error(Component *c, const char *where)
 {
     PyObject *type, *value, *traceback;
     char message[4096];
     PyErr_Fetch(&type, &value, &traceback);
     PyErr_NormalizeException(&type, &value, &traceback);
+    c->refused = c->refusal != NULL && type != NULL && PyErr_GivenExceptionMatches(type, c->refusal);
     const char *type_name = type ? ((PyTypeObject *)type)->tp_name : "error";
     PyObject *text = value ? PyObject_Str(value) : NULL;
     const char *detail = text ? PyUnicode_AsUTF8(text) : "unknown error";
-    snprintf(message, sizeof message, "%s: %s: %s", where, type_name, detail ? detail : "");
+    if (c->refused)
+        snprintf(message, sizeof message, "%s refused: %s", where, detail ? detail : "");
+    else
+        snprintf(message, sizeof message, "%s: %s: %s", where, type_name, detail ? detail : "");
     Py_XDECREF(text);
     Py_XDECREF(type);
     Py_XDECREF(value);
@@ -143,7 +157,8 @@ static fmi2Status call(Component *c, const char *method, PyObject *args, PyObjec
     PyGILState_Release(gil_);                           \
     return status_;
 
-#define COMPONENT Component *c = (Component *)component; if (c == NULL) return fmi2Error;
+/* every entry point: the component, and no refusal yet for this call */
+#define COMPONENT Component *c = (Component *)component; if (c == NULL) return fmi2Error; c->refused = 0;
 
 static char *copy_string(const char *text)
 {
@@ -188,6 +203,7 @@ static void free_component(Component *c)
 {
     if (c == NULL) return;
     Py_XDECREF(c->instance);
+    Py_XDECREF(c->refusal);
     Py_XDECREF(c->slave_class);
     Py_XDECREF(c->strings);
     free(c->name);
@@ -242,7 +258,14 @@ static fmi2Component instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2
 
     PyGILState_STATE gil = PyGILState_Ensure();
     c->slave_class = slave_class(c, record);
-    if (c->slave_class != NULL) c->instance = create_instance(c);
+    if (c->slave_class != NULL) {
+        c->refusal = PyObject_GetAttrString(c->slave_class, "Refused");
+        if (c->refusal == NULL || !PyExceptionClass_Check(c->refusal)) { /* a slave without refusals */
+            PyErr_Clear();
+            Py_CLEAR(c->refusal);
+        }
+        c->instance = create_instance(c);
+    }
     if (c->instance == NULL) {
         python_error(c, "fmi2Instantiate");
         free_component(c);
@@ -411,19 +434,50 @@ SETTER(set_integer, "set_integer", fmi2Integer, PyLong_FromLong)
 SETTER(set_boolean, "set_boolean", fmi2Boolean, PyBool_FromLong)
 SETTER(set_string, "set_string", fmi2String, string_object)
 
-/* ---- FMU state (the loader wraps these with its own state machine fields) */
+/* ---- FMU state: the slave's, holding the loader's fields (ObsfmuMachine) */
 
-static fmi2Status get_fmu_state(fmi2Component component, fmi2FMUstate *state)
+static fmi2Status get_fmu_state(fmi2Component component, const ObsfmuMachine *machine, fmi2FMUstate *state)
 {
     COMPONENT
+    if (machine == NULL || state == NULL) return fmi2Error;
     WITH_GIL({
         PyObject *snapshot = NULL;
-        status_ = call(c, "get_fmu_state", PyTuple_New(0), &snapshot);
+        PyObject *loader = Py_BuildValue("{s:i,s:s}", "fmi", machine->fmi, "state", machine->state);
+        status_ = call(c, "get_fmu_state", loader ? Py_BuildValue("(N)", loader) : NULL, &snapshot);
         if (snapshot) {
             Py_XDECREF((PyObject *)*state);
             *state = snapshot;
         }
     })
+}
+
+/* slave.loader_fields(state) -> (None or {"fmi": int, "state": str}, time, initialized) into *machine
+ * (machine->fmi = 0 when the state holds no loader fields); with the GIL held. */
+static fmi2Status read_machine(Component *c, PyObject *state, ObsfmuMachine *machine)
+{
+    PyObject *fields = NULL, *loader = NULL;
+    memset(machine, 0, sizeof *machine);
+    fmi2Status status = call(c, "loader_fields", Py_BuildValue("(O)", state), &fields);
+    if (fields && PyArg_ParseTuple(fields, "Odp", &loader, &machine->time, &machine->initialized)
+        && PyDict_Check(loader)) {
+        PyObject *fmi = PyDict_GetItemString(loader, "fmi"); /* borrowed */
+        PyObject *name = PyDict_GetItemString(loader, "state");
+        const char *text = name && PyUnicode_Check(name) ? PyUnicode_AsUTF8(name) : NULL;
+        if (fmi && PyLong_Check(fmi) && text && strlen(text) < sizeof machine->state) {
+            machine->fmi = (int)PyLong_AsLong(fmi);
+            strcpy(machine->state, text);
+        }
+    }
+    Py_XDECREF(fields);
+    if (PyErr_Occurred()) status = python_error(c, "loader_fields");
+    return status;
+}
+
+static fmi2Status machine_of(fmi2Component component, fmi2FMUstate state, ObsfmuMachine *machine)
+{
+    COMPONENT
+    if (state == NULL || machine == NULL) return fmi2Error;
+    WITH_GIL(status_ = read_machine(c, (PyObject *)state, machine))
 }
 
 static fmi2Status set_fmu_state(fmi2Component component, fmi2FMUstate state)
@@ -520,6 +574,12 @@ static fmi2Status set_real_input_derivatives(fmi2Component component, const fmi2
     })
 }
 
+static fmi2Status clear_input_derivatives(fmi2Component component, const fmi2ValueReference vr[], size_t nvr)
+{
+    COMPONENT
+    WITH_GIL(status_ = call(c, "clear_input_derivatives", Py_BuildValue("(N)", reference_list(vr, nvr)), NULL))
+}
+
 static fmi2Status do_step(fmi2Component component, fmi2Real currentCommunicationPoint,
                           fmi2Real communicationStepSize, fmi2Boolean noSetFMUStatePriorToCurrentPoint)
 {
@@ -536,14 +596,20 @@ static fmi2Status do_step(fmi2Component component, fmi2Real currentCommunication
     })
 }
 
+static int refused(fmi2Component component)
+{
+    Component *c = (Component *)component;
+    return c != NULL && c->refused;
+}
+
 __attribute__((visibility("default"))) const ObsfmuBridge *obsfmu_bridge(void)
 {
     static const ObsfmuBridge table = {
         OBSFMU_BRIDGE_ABI, start, instantiate, free_instance, set_debug_logging, setup_experiment,
         enter_initialization_mode, exit_initialization_mode, terminate, reset,
         get_real, get_integer, get_boolean, get_string, set_real, set_integer, set_boolean, set_string,
-        get_fmu_state, set_fmu_state, free_fmu_state, serialized_fmu_state_size, serialize_fmu_state,
-        deserialize_fmu_state, set_real_input_derivatives, do_step,
+        get_fmu_state, machine_of, set_fmu_state, free_fmu_state, serialized_fmu_state_size, serialize_fmu_state,
+        deserialize_fmu_state, set_real_input_derivatives, clear_input_derivatives, do_step, refused,
     };
     return &table;
 }

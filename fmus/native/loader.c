@@ -6,8 +6,11 @@
  *   1. It enforces the FMI 2.0 co-simulation state machine (the standard's table of allowed
  *      calls per state, section 4.2.4) and checks the arguments of fmi2DoStep and
  *      fmi2SetRealInputDerivatives.  A call it refuses returns fmi2Error, logs the call and the
- *      reason, and changes nothing.  A failure inside the slave (fmi2Error) puts the instance in
- *      the error state, left only by fmi2SetFMUstate, fmi2Reset or fmi2FreeInstance.
+ *      reason, and changes nothing.  So does a call the slave refuses (fmi2Error, nothing changed:
+ *      bad FMU-state bytes, a parameter after initialization, ...).  A call that FAILS inside the
+ *      slave (fmi2Error: an unexpected exception, an error the slave logged) puts the instance in
+ *      the error state, left only by fmi2SetFMUstate, fmi2Reset or fmi2FreeInstance.  fmi2Discard
+ *      from fmi2DoStep leads to stepFailed (the standard's): fmi2SetFMUstate or fmi2Reset go on.
  *   2. At the first instantiation it gets Python: the interpreter already running in the process
  *      (fmpy, libcosimpy, ...: same major.minor version as the bridge required), or else
  *      libpython of $OBSFMU_PYTHON (a Python prefix, a virtual environment or a python executable)
@@ -49,7 +52,8 @@ static const char *state_name(unsigned state)
     }
 }
 
-static const Version FMI2 = {"obsfmu\0\1", ANY_STATE, ERROR, state_name, "fmi2"};
+static const Version FMI2 = {2, ANY_STATE, INSTANTIATED | INITIALIZATION_MODE, STEP_COMPLETE | STEP_FAILED | TERMINATED,
+                             ERROR, state_name, "fmi2"};
 
 typedef Core Instance;
 
@@ -193,7 +197,7 @@ SETTER(fmi2SetInteger, setInteger, fmi2Integer)
 SETTER(fmi2SetBoolean, setBoolean, fmi2Boolean)
 SETTER(fmi2SetString, setString, fmi2String)
 
-/* ---- FMU state: the slave's state plus the state machine's (state, time), loader_common.h */
+/* ---- FMU state: the slave's, holding the state machine's state (loader_common.h) */
 
 fmi2Status fmi2GetFMUstate(fmi2Component component, fmi2FMUstate *state)
 {

@@ -5,9 +5,11 @@
  *   - finding or starting Python and loading the BRIDGE, once per process (get_bridge);
  *   - the CORE of an instance: the bridge's component, the state machine's state and time, where
  *     messages go (an fmi2CallbackFunctions: the FMI 3 loader points it at a trampoline), and the
- *     rule that a failed call moves the instance to the version's failure state;
- *   - FMU states: the slave's state plus the state machine's (state, time), and their serialized
- *     form (header: magic of the FMI version, state, time, CRC-32 of all of it and the slave's bytes).
+ *     rule that a FAILED call moves the instance to the version's failure state while a call the
+ *     slave REFUSED (it changed nothing) leaves it where it was (after());
+ *   - FMU states: the slave's, which hold the loader's fields (FMI version, state machine state; the
+ *     time is the slave's): one serialized format, the slave's (fmus/state_format.py), with one
+ *     identity check and one checksum; the loader validates its fields whenever a state comes back.
  *
  * Each loader includes this file once; everything here is static (nothing is exported).
  * The bridge is the same for both FMI versions: it speaks the FMI 2.0 signatures with the slave's
@@ -221,8 +223,10 @@ __attribute__((destructor)) static void unload(void)
 
 /* What differs between the FMI versions in the parts below. */
 typedef struct {
-    char magic[8];               /* first bytes of a serialized FMU state */
+    int fmi;                     /* 2 or 3: kept in every FMU state */
     unsigned every_state;        /* mask of the state machine's states */
+    unsigned before_init;        /* states before exitInitializationMode (the slave not initialized) */
+    unsigned after_init;         /* states after it (the slave initialized); the others: either */
     unsigned failed;             /* the state a failed call (fmi2Error/fmi3Error) leads to */
     const char *(*state_name)(unsigned state);
     const char *prefix;          /* "fmi2" or "fmi3", for messages */
@@ -247,13 +251,6 @@ typedef struct {
     size_t start_count;
 } Core;
 
-/* An FMU state: the slave's plus the state machine's. */
-typedef struct {
-    fmi2FMUstate inner;
-    unsigned state;
-    double time;
-} Snapshot;
-
 static void say(const fmi2CallbackFunctions *callbacks, const char *name, fmi2Status status, const char *format, ...)
 {
     char message[8192];
@@ -266,40 +263,71 @@ static void say(const fmi2CallbackFunctions *callbacks, const char *name, fmi2St
 
 #define refuse(core, ...) (say(&(core)->callbacks, (core)->name, fmi2Error, __VA_ARGS__), fmi2Error)
 
-/* A slave failure leaves the instance in the version's failure state. */
+/* The status of a call that reached the bridge.  fmi2Error: a call the slave refused (it changed
+ * nothing) leaves the instance in its state, a failed one moves it to the version's failure state. */
 static fmi2Status after(Core *c, fmi2Status status)
 {
     if (status < fmi2Error) return status;
-    c->state = c->version->failed;
+    if (!c->bridge->refused(c->inner)) c->state = c->version->failed;
     return fmi2Error;
 }
 
 /* ------------------------------------------------------------------ FMU states */
 
+/* An FMU state is the slave's (an object of the bridge): it holds the loader's fields, which the
+ * loader hands over when the state is saved and validates whenever a state comes back (set or
+ * deserialized: a state of this FMI version, a known state machine state that agrees with the
+ * slave's initialization).  The serialized form is the slave's alone (fmus/state_format.py: format
+ * version, identity = model name and GUID / instantiationToken, SHA-256 of everything). */
+
+static unsigned state_bit(const Version *version, const char *name)
+{
+    for (unsigned bit = 1; bit != 0 && bit <= version->every_state; bit <<= 1)
+        if ((version->every_state & bit) && strcmp(version->state_name(bit), name) == 0) return bit;
+    return 0;
+}
+
+/* The loader's fields of `state`, validated: fmi2OK and the state machine state in *bit and the time in
+ * *time, or fmi2Error after a message (nothing changes). */
+static fmi2Status core_machine(Core *c, const char *call, void *state, unsigned *bit, double *time)
+{
+    ObsfmuMachine machine;
+    fmi2Status status = c->bridge->machineOf(c->inner, state, &machine);
+    if (status >= fmi2Error) return after(c, status);
+    const Version *v = c->version;
+    *bit = machine.fmi == v->fmi ? state_bit(v, machine.state) : 0;
+    *time = machine.time;
+    if (machine.fmi == 0)
+        return refuse(c, "%s: the state holds no state machine fields (not saved by an obsfmu FMU binary)", call);
+    if (machine.fmi != v->fmi)
+        return refuse(c, "%s: this state was saved by the FMI %d.0 binary of this FMU; this is the FMI %d.0 binary",
+                      call, machine.fmi, v->fmi);
+    if (*bit == 0) return refuse(c, "%s: the state machine state %.31s of the state is unknown", call, machine.state);
+    if ((machine.initialized && (*bit & v->before_init)) || (!machine.initialized && (*bit & v->after_init)))
+        return refuse(c, "%s: the state is damaged: state machine state %s, but the slave %s initialized", call,
+                      machine.state, machine.initialized ? "was" : "was not");
+    return status;
+}
+
 static fmi2Status core_get_state(Core *c, const char *call, void **state)
 {
     if (state == NULL) return refuse(c, "%s: FMUState is NULL", call);
-    Snapshot *snapshot = *state ? (Snapshot *)*state : calloc(1, sizeof(Snapshot));
-    if (snapshot == NULL) return refuse(c, "%s: out of memory", call);
-    fmi2Status status = c->bridge->getFMUstate(c->inner, &snapshot->inner);
-    if (status < fmi2Error) {
-        snapshot->state = c->state;
-        snapshot->time = c->time;
-        *state = snapshot;
-    } else if (*state == NULL) {
-        free(snapshot);
-    }
-    return after(c, status);
+    ObsfmuMachine machine = {c->version->fmi, "", 0.0, 0};
+    snprintf(machine.state, sizeof machine.state, "%s", c->version->state_name(c->state));
+    return after(c, c->bridge->getFMUstate(c->inner, &machine, state));
 }
 
 static fmi2Status core_set_state(Core *c, const char *call, void *state)
 {
-    Snapshot *snapshot = (Snapshot *)state;
-    if (snapshot == NULL) return refuse(c, "%s: FMUState is NULL", call);
-    fmi2Status status = c->bridge->setFMUstate(c->inner, snapshot->inner);
+    unsigned bit;
+    double time;
+    if (state == NULL) return refuse(c, "%s: FMUState is NULL", call);
+    fmi2Status status = core_machine(c, call, state, &bit, &time);
+    if (status >= fmi2Error) return status;
+    status = c->bridge->setFMUstate(c->inner, state);
     if (status < fmi2Error) {
-        c->state = snapshot->state;
-        c->time = snapshot->time;
+        c->state = bit;
+        c->time = time;
     }
     return after(c, status);
 }
@@ -307,91 +335,42 @@ static fmi2Status core_set_state(Core *c, const char *call, void *state)
 static fmi2Status core_free_state(Core *c, void **state)
 {
     if (state == NULL || *state == NULL) return fmi2OK;
-    Snapshot *snapshot = (Snapshot *)*state;
-    fmi2Status status = c->bridge->freeFMUstate(c->inner, &snapshot->inner);
-    free(snapshot);
-    *state = NULL;
-    return after(c, status);
-}
-
-/* Serialized: a header (magic, state, CRC-32 of state, time and the slave's bytes, time), then the slave's bytes. */
-typedef struct {
-    char magic[8];
-    uint32_t state;
-    uint32_t crc;
-    double time;
-} Header;
-
-static uint32_t crc32(uint32_t crc, const void *data, size_t size)
-{
-    const unsigned char *bytes = data;
-    crc = ~crc;
-    for (size_t i = 0; i < size; i++) {
-        crc ^= bytes[i];
-        for (int k = 0; k < 8; k++) crc = (crc >> 1) ^ (0xEDB88320u & (0u - (crc & 1u)));
-    }
-    return ~crc;
-}
-
-static uint32_t checksum(const Header *header, const fmi2Byte *payload, size_t size)
-{
-    uint32_t crc = crc32(0, &header->state, sizeof header->state);
-    crc = crc32(crc, &header->time, sizeof header->time);
-    return crc32(crc, payload, size);
+    return after(c, c->bridge->freeFMUstate(c->inner, state));
 }
 
 static fmi2Status core_serialized_size(Core *c, const char *call, void *state, size_t *size)
 {
     if (state == NULL || size == NULL) return refuse(c, "%s: NULL argument", call);
-    fmi2Status status = c->bridge->serializedFMUstateSize(c->inner, ((Snapshot *)state)->inner, size);
-    if (status < fmi2Error) *size += sizeof(Header);
-    return after(c, status);
+    return after(c, c->bridge->serializedFMUstateSize(c->inner, state, size));
 }
 
 static fmi2Status core_serialize(Core *c, const char *call, void *state, fmi2Byte buffer[], size_t size)
 {
-    Snapshot *snapshot = (Snapshot *)state;
-    size_t payload = 0;
-    if (snapshot == NULL || buffer == NULL) return refuse(c, "%s: NULL argument", call);
-    fmi2Status status = c->bridge->serializedFMUstateSize(c->inner, snapshot->inner, &payload);
+    size_t needed = 0;
+    if (state == NULL || buffer == NULL) return refuse(c, "%s: NULL argument", call);
+    fmi2Status status = c->bridge->serializedFMUstateSize(c->inner, state, &needed);
     if (status >= fmi2Error) return after(c, status);
-    if (size < sizeof(Header) + payload)
-        return refuse(c, "%s: buffer of %zu bytes, %zu needed", call, size, sizeof(Header) + payload);
-    status = c->bridge->serializeFMUstate(c->inner, snapshot->inner, buffer + sizeof(Header), payload);
-    if (status >= fmi2Error) return after(c, status);
-    Header header;
-    memcpy(header.magic, c->version->magic, sizeof header.magic);
-    header.state = (uint32_t)snapshot->state;
-    header.time = snapshot->time;
-    header.crc = checksum(&header, buffer + sizeof(Header), payload);
-    memcpy(buffer, &header, sizeof header);
-    return status;
+    if (size < needed) return refuse(c, "%s: buffer of %zu bytes, %zu needed", call, size, needed);
+    return after(c, c->bridge->serializeFMUstate(c->inner, state, buffer, size));
 }
 
+/* The slave checks the bytes (format, identity, checksum, its own fields); then the loader its fields. */
 static fmi2Status core_deserialize(Core *c, const char *call, const fmi2Byte bytes[], size_t size, void **state)
 {
-    Header header;
+    unsigned bit;
+    double time;
+    void *read = NULL;
     if (bytes == NULL || state == NULL) return refuse(c, "%s: NULL argument", call);
-    if (size < sizeof header) return refuse(c, "%s: %zu bytes are not an FMU state", call, size);
-    memcpy(&header, bytes, sizeof header);
-    const fmi2Byte *payload = bytes + sizeof header;
-    unsigned saved = header.state;
-    if (memcmp(header.magic, c->version->magic, sizeof header.magic) != 0 || (saved & c->version->every_state) == 0
-        || (saved & (saved - 1)) != 0)
-        return refuse(c, "%s: not a serialized state of an obsfmu FMU of this version", call);
-    if (checksum(&header, payload, size - sizeof header) != header.crc)
-        return refuse(c, "%s: the serialized state is damaged (checksum mismatch)", call);
-    Snapshot *snapshot = *state ? (Snapshot *)*state : calloc(1, sizeof(Snapshot));
-    if (snapshot == NULL) return refuse(c, "%s: out of memory", call);
-    fmi2Status status = c->bridge->deSerializeFMUstate(c->inner, payload, size - sizeof header, &snapshot->inner);
-    if (status < fmi2Error) {
-        snapshot->state = saved;
-        snapshot->time = header.time;
-        *state = snapshot;
-    } else if (*state == NULL) {
-        free(snapshot);
+    fmi2Status status = c->bridge->deSerializeFMUstate(c->inner, bytes, size, &read);
+    if (status >= fmi2Error || read == NULL) return after(c, status >= fmi2Error ? status : fmi2Error);
+    fmi2Status checked = core_machine(c, call, read, &bit, &time);
+    if (checked >= fmi2Error) {
+        c->bridge->freeFMUstate(c->inner, &read);
+        return checked;
     }
-    return after(c, status);
+    if (*state != NULL) c->bridge->freeFMUstate(c->inner, state); /* FMI: an existing state is overwritten */
+    *state = read;
+    return status > checked ? status : checked;
 }
 
 /* ------------------------------------------------------------------ instantiation */

@@ -12,10 +12,12 @@
  *      Int32 <-> fmi2GetInteger/SetInteger; `time` (the independent variable) is answered here.
  *   2. The FMI 3.0 co-simulation state machine (no event mode: hasEventMode = false): instantiated,
  *      initializationMode, stepMode, intermediateUpdateMode, terminated.  A call it refuses returns
- *      fmi3Error, logs the call and the reason, and changes nothing.  A failure inside the slave
- *      (fmi3Error) leads to terminated (FMI 3.0: "the FMU enters state Terminated"), left by
- *      fmi3SetFMUState, fmi3Reset or fmi3FreeInstance.  fmi3Discard from fmi3DoStep leaves the FMU
- *      in step mode at the same time (the slave kept its state), lastSuccessfulTime = that time.
+ *      fmi3Error, logs the call and the reason, and changes nothing; so does a call the slave
+ *      refuses (fmi3Error, nothing changed: bad FMU-state bytes, an invalid Int32 value, ...).  A
+ *      call that FAILS inside the slave (fmi3Error: an unexpected exception, an error the slave
+ *      logged) leads to terminated, left by fmi3SetFMUState, fmi3Reset or fmi3FreeInstance.
+ *      fmi3Discard from fmi3DoStep leaves the FMU in step mode at the same time (the slave kept its
+ *      state), lastSuccessfulTime = that time.
  *   3. Input interpolation: when the importer gives an intermediateUpdate callback and requires
  *      inputs (requiredIntermediateVariables), fmi3DoStep calls it once at t + h asking for those
  *      inputs (intermediateVariableSetRequested); the values set there and the values at t define
@@ -61,7 +63,8 @@ static const char *state_name(unsigned state)
     }
 }
 
-static const Version FMI3 = {"obsfmu\0\3", ANY_STATE, TERMINATED, state_name, "fmi3"};
+static const Version FMI3 = {3, ANY_STATE, INSTANTIATED | INITIALIZATION_MODE, STEP_MODE | TERMINATED, TERMINATED,
+                             state_name, "fmi3"};
 
 /* ------------------------------------------------------------------ variables */
 
@@ -86,6 +89,7 @@ typedef struct {
     double *ends, *starts, *slopes;
     fmi2Integer *orders;
     fmi2ValueReference *input_vrs;
+    size_t derived;                 /* how many of input_vrs got derivatives in this step's intermediate update */
     fmi3InstanceEnvironment environment;
     fmi3LogMessageCallback logMessage;
     fmi3IntermediateUpdateCallback intermediateUpdate;
@@ -603,6 +607,7 @@ fmi3Status fmi3DeserializeFMUState(fmi3Instance instance, const fmi3Byte seriali
 static fmi2Status intermediate_inputs(Instance *c, double t, double h)
 {
     int any = 0;
+    c->derived = 0;
     for (size_t i = 0; i < c->variable_count; i++) {
         c->variables[i].pending = 0;
         any |= c->variables[i].required;
@@ -629,6 +634,7 @@ static fmi2Status intermediate_inputs(Instance *c, double t, double h)
         c->orders[k] = 1;
     }
     fmi2Status set = c->core.bridge->setRealInputDerivatives(c->core.inner, c->input_vrs, n, c->orders, c->slopes);
+    c->derived = n;
     return set > status ? set : status;
 }
 
@@ -657,6 +663,9 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
     if (status <= fmi2Warning) {
         c->core.time = t + h;
         *lastSuccessfulTime = c->core.time;
+    } else if (status == fmi2Discard && c->derived > 0) { /* the slopes were this step's: take them back */
+        fmi2Status cleared = c->core.bridge->clearInputDerivatives(c->core.inner, c->input_vrs, c->derived);
+        status = cleared > status ? cleared : status;
     }
     return AFTER(c, status); /* fmi3Discard: still in step mode at the same time, the slave's state unchanged */
 }

@@ -23,10 +23,29 @@
 #define OBSFMU_RECORD "obsfmu_native.txt"
 #define OBSFMU_STARTS "obsfmu_start.txt" /* start values of an exported copy (loader_common.h) */
 #define OBSFMU_BRIDGE_SYMBOL "obsfmu_bridge"
-#define OBSFMU_BRIDGE_ABI 1
+#define OBSFMU_BRIDGE_ABI 2
 
-/* The bridge's functions: the FMI 2.0 signatures (instance = the bridge's own component),
- * plus start() for a process without Python. */
+/* What the loader keeps in an FMU state (one serialized format: the slave's, fmus/state_format.py).
+ * The loader hands `fmi` and `state` to the slave's getFMUstate; machineOf() gives them back from any
+ * state (one it saved, or one the slave deserialized and checked), with the slave's own `time` and
+ * `initialized` (the state was saved after exitInitializationMode), for the loader to validate. */
+#define OBSFMU_STATE_NAME 32
+typedef struct {
+    int fmi;                          /* 2 or 3: the FMI version of the loader that saved the state */
+    char state[OBSFMU_STATE_NAME];    /* the state machine's state, by name ("stepComplete", ...) */
+    double time;                      /* out: the slave's time in the state (the loader's time too) */
+    int initialized;                  /* out: 1 if saved after a successful exitInitializationMode */
+} ObsfmuMachine;
+
+/* The bridge's functions: the FMI 2.0 signatures (instance = the bridge's own component), plus
+ * start() for a process without Python, the loader's fields of FMU states, and refused().
+ *
+ * Refused or failed: a call that returns fmi2Error was either REFUSED by the slave -- it raised its
+ * refusal exception (BlockSlave.Refused) after checking the call and before changing anything: the
+ * instance is exactly as before and usable -- or it FAILED (any other exception, or an error the slave
+ * logged while carrying the call out: the instance may be inconsistent).  refused() says which, for the
+ * bridge's last call on that component; the loader moves the instance to its failure state only when
+ * the call failed. */
 typedef struct {
     int abi;
     /* start the embedded interpreter once per process: libpython is already loaded RTLD_GLOBAL;
@@ -48,14 +67,21 @@ typedef struct {
     fmi2SetIntegerTYPE *setInteger;
     fmi2SetBooleanTYPE *setBoolean;
     fmi2SetStringTYPE *setString;
-    fmi2GetFMUstateTYPE *getFMUstate;
+    /* the slave's state, with the loader's fields `fmi` and `state` of `machine` in it */
+    fmi2Status (*getFMUstate)(fmi2Component c, const ObsfmuMachine *machine, fmi2FMUstate *state);
+    /* the loader's fields of a state, with the slave's time and initialized (changes nothing) */
+    fmi2Status (*machineOf)(fmi2Component c, fmi2FMUstate state, ObsfmuMachine *machine);
     fmi2SetFMUstateTYPE *setFMUstate;
     fmi2FreeFMUstateTYPE *freeFMUstate;
     fmi2SerializedFMUstateSizeTYPE *serializedFMUstateSize;
     fmi2SerializeFMUstateTYPE *serializeFMUstate;
     fmi2DeSerializeFMUstateTYPE *deSerializeFMUstate;
     fmi2SetRealInputDerivativesTYPE *setRealInputDerivatives;
+    /* take back the input derivatives of these inputs (FMI 3.0: those of a discarded step's intermediate update) */
+    fmi2Status (*clearInputDerivatives)(fmi2Component c, const fmi2ValueReference vr[], size_t nvr);
     fmi2DoStepTYPE *doStep;
+    /* 1 if the bridge's last call on c returned fmi2Error because the slave refused it */
+    int (*refused)(fmi2Component c);
 } ObsfmuBridge;
 
 typedef const ObsfmuBridge *ObsfmuBridgeFunction(void);

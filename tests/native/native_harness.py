@@ -132,12 +132,13 @@ def read_csv(path: Path) -> np.ndarray:
 
 
 def parse_calls(stdout: str) -> dict[str, list[tuple[str, int, float, list[str]]]]:
-    """``case id -> [(call, status, value, log messages of that call), ...]`` from ``calls`` output."""
+    """``case id -> [(call, status, value, log messages of that call), ...]`` from ``calls`` output;
+    each message is ``"<level> <text>"`` (the fmi2Status it was logged with, e.g. ``"3 fmi2DoStep is ..."``)."""
     cases: dict[str, list] = {}
     logs: list[str] = []
     for line in stdout.splitlines():
         if line.startswith("log "):
-            logs.append(line.split(" ", 3)[3])
+            logs.append(line.split(" ", 2)[2])
         elif line.startswith("call "):
             _, case, name, status, *value = line.split(" ")
             if name == "instantiate:badguid":
