@@ -243,3 +243,13 @@ def test_bad_interpolation_mode_is_refused_and_logged(ship_fmus, capfd):
     assert "y_interpolation: 7 is not 0 (hold), 1 (extrapolate) or 2 (interpolate)" in capfd.readouterr().out
     assert slave.getInteger([vr["u_interpolation"], vr["y_interpolation"]]) == [1, 2]
     slave.freeInstance()
+
+
+def test_an_fmu_bundles_only_the_runtime_part_of_fmus(ship_fmus):
+    """Master, CLI, scenarios and campaigns stay out: editing them changes no FMU's code hash."""
+    from fmus.builder import FMU_RUNTIME
+    names = zipfile.ZipFile(ship_fmus["ship_observer"]).namelist()
+    bundled = {n.split("/", 2)[2] for n in names if n.startswith("resources/_obsfmu_") and "/fmus/" in n}
+    assert "fmus/slave.py" in bundled and "fmus/kinds/linear.py" in bundled
+    assert all(name.startswith(FMU_RUNTIME) for name in bundled), sorted(bundled)
+    assert not {"fmus/master.py", "fmus/cli.py", "fmus/scenarios/__init__.py"} & bundled
