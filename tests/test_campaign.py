@@ -129,6 +129,17 @@ def test_the_plan_reports_units_and_resolved_settings(build_dir):
     assert [s.values["plant.omega"] for s in plan.samples] == [0.5, 1.0, 1.5, 2.0]
 
 
+def test_sweep_times_take_units_like_run():
+    from fmus.campaign.cli import campaign_from_args
+    args = cli.parser().parse_args(["sweep", "state-affine-chemostat", "--vary", "plant.x0[1]=1,2",
+                                    "--stop-time", "90min", "--step", "7.2s"])
+    campaign = campaign_from_args(args)
+    assert (campaign.stop_time, campaign.step) == (1.5, 0.002)   # hours, the scenario's unit
+    args = cli.parser().parse_args(["sweep", "state-affine-chemostat", "--vary", "plant.x0[1]=1,2",
+                                    "--stop-time", "3"])
+    assert campaign_from_args(args).stop_time == 3.0
+
+
 def test_a_campaign_file_gives_the_same_samples_as_the_command_line(build_dir, tmp_path):
     path = tmp_path / "study.toml"
     path.write_text('scenario = "discrete-gpebo"\nsamples = 3\nseed = 5\n[vary]\n"plant.x0[1]" = "uniform(-1, 1)"\n'

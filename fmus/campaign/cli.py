@@ -31,6 +31,7 @@ def _positive_int(text: str) -> int:
 
 def configure(sweep: argparse.ArgumentParser) -> None:
     """The options of ``obsfmu sweep``."""
+    from ..cli import _duration
     from ..master import COUPLINGS, ORDERS
 
     sweep.add_argument("scenario", nargs="?", help="scenario name (obsfmu list); optional with --config")
@@ -46,8 +47,10 @@ def configure(sweep: argparse.ArgumentParser) -> None:
     where.add_argument("--scheduler", metavar="ADDR", help="address of a running Dask scheduler, "
                        "e.g. tcp://HOST:8786 (see 'dask scheduler' / 'dask worker')")
     sweep.add_argument("--out", help="campaign directory (default: results/sweep-SCENARIO)")
-    sweep.add_argument("--stop-time", type=float, help="stop time (default: the scenario's)")
-    sweep.add_argument("--step", type=float, help="communication step (default: the scenario's)")
+    sweep.add_argument("--stop-time", type=_duration, help="stop time (default: the scenario's), in its unit of "
+                       "time unless given: 30, 90min")
+    sweep.add_argument("--step", type=_duration, help="communication step (default: the scenario's), "
+                       "same units")
     sweep.add_argument("--master", choices=ORDERS, help="stepping order (default: the scenario's)")
     sweep.add_argument("--tol", type=float, help="adaptive master: error per unit step (default 1e-6)")
     sweep.add_argument("--coupling", choices=COUPLINGS, help="inputs inside a step (default: the scenario's)")
@@ -90,15 +93,28 @@ def campaign_from_args(args):
     """The :class:`~fmus.campaign.design.Campaign` described by the command line (and ``--config``)."""
     from .design import Campaign
 
-    options = {"scenario": args.scenario, "samples": args.samples, "seed": args.seed, "stop_time": args.stop_time,
-               "step": args.step, "master": args.master, "coupling": args.coupling, "tolerance": args.tol,
+    options = {"scenario": args.scenario, "samples": args.samples, "seed": args.seed, "master": args.master, "coupling": args.coupling, "tolerance": args.tol,
                "time_limit": args.time_limit, "time_metric": args.time_metric, "error_metric": args.error_metric,
                "build_dir": args.build_dir, "vary": _pairs(args.vary, "--vary"), "set": _pairs(args.set, "--set")}
     if args.config:
-        return Campaign.from_toml(args.config, **options)
-    if not args.scenario:
+        campaign = Campaign.from_toml(args.config, **options)
+    elif not args.scenario:
         raise _error("sweep: give a SCENARIO (obsfmu list) or --config FILE.toml")
-    return Campaign(**{k: v for k, v in options.items() if v is not None})
+    else:
+        campaign = Campaign(**{k: v for k, v in options.items() if v is not None})
+    return _with_times(campaign, args)
+
+
+def _with_times(campaign, args):
+    """``--stop-time``/``--step`` (numbers in the scenario's unit of time, or with their own unit)."""
+    from .. import scenarios
+
+    given = {key: getattr(args, key) for key in ("stop_time", "step") if getattr(args, key) is not None}
+    if given:
+        unit = scenarios.get(campaign.scenario).time_unit
+        for key, duration in given.items():
+            setattr(campaign, key, duration.in_unit(unit))
+    return campaign
 
 
 def cmd_sweep(args) -> int:
