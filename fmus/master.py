@@ -33,6 +33,15 @@ which returns a :class:`Result`).
 Re-use.  A :class:`Session` extracts and instantiates the FMUs once and runs
 the system as often as needed (``fmi2Reset`` between runs, new start values
 each time); :func:`cosimulate` is one run of a fresh session.
+
+Cost.  fmpy loads the FMUs and makes every call outside the stepping loop.
+Inside it, the four calls of a communication step (``fmi2SetReal``,
+``fmi2SetRealInputDerivatives``, ``fmi2DoStep``, ``fmi2GetReal``) go straight to
+the binary through ctypes functions with fixed argument types, on numpy
+buffers allocated once per run: inputs are gathered with one index array per
+instance and outputs are written by the FMU directly into the shared output
+vector -- no Python list, no per-call marshalling (fmpy's wrappers cost
+3-9 us per call, a direct call 0.1 us plus what the FMU does).
 """
 
 from __future__ import annotations
@@ -45,6 +54,8 @@ import time as wallclock
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
+
+from ctypes import c_double, c_int, c_size_t, c_void_p
 
 import numpy as np
 from fmpy import extract, read_model_description
@@ -120,7 +131,26 @@ class _Instance:
         self.output_values = np.zeros(len(self.outputs))
         self.input_vrs: list[int] = []
         self.input_sources: np.ndarray = np.zeros(0, dtype=int)
+        self.stepped_before: np.ndarray = np.zeros(0, dtype=bool)
         self.instantiated = False
+        self.raw = _RawCalls(self.slave.dll)
+
+    def prepare(self) -> None:
+        """Buffers of the stepping loop (after wiring): value references, input values and slopes."""
+        self._input_vr = np.array(self.input_vrs, dtype=np.uint32)
+        self._output_vr = np.array(self.output_vrs, dtype=np.uint32)
+        self._orders = np.ones(len(self.input_vrs), dtype=np.int32)
+        self.input_values = np.zeros(len(self.input_vrs))
+        self.input_slopes = np.zeros(len(self.input_vrs))
+        self.stepped_index = np.flatnonzero(self.stepped_before)
+        self.stepped_sources = self.input_sources[self.stepped_index]
+        self._pointers = (self._input_vr.ctypes.data, self._output_vr.ctypes.data, self._orders.ctypes.data,
+                          self.input_values.ctypes.data, self.input_slopes.ctypes.data)
+
+    def bind_outputs(self, view: np.ndarray) -> None:
+        """Make ``view`` (a slice of the shared output vector) the place ``fmi2GetReal`` writes to."""
+        self.output_values = view
+        self._output_address = view.ctypes.data
 
     def variable(self, name: str):
         try:
@@ -157,16 +187,48 @@ class _Instance:
         else:
             raise SimulationError(f"{self.name}.{name}: type {variable.type} cannot be set")
 
-    def refresh_outputs(self) -> None:
-        if self.output_vrs:
-            self.output_values[:] = self.slave.getReal(self.output_vrs)
+    def refresh_outputs(self) -> int:
+        """``fmi2GetReal`` of every output into :attr:`output_values`; the FMI status."""
+        if not self.output_vrs:
+            return 0
+        return self.raw.get_real(self.slave.component, self._pointers[1], len(self.output_vrs),
+                                 self._output_address)
 
-    def set_inputs(self, values: np.ndarray, derivatives: np.ndarray | None = None) -> None:
-        """Inputs at the current time, and their first derivatives over the next step."""
-        if self.input_vrs:
-            self.slave.setReal(self.input_vrs, values.tolist())
-            if derivatives is not None and self.can_interpolate:
-                self.slave.setRealInputDerivatives(self.input_vrs, [1] * len(self.input_vrs), derivatives.tolist())
+    def set_inputs(self, derivatives: bool = False) -> int:
+        """``fmi2SetReal`` of :attr:`input_values` (and, with ``derivatives``, ``fmi2SetRealInputDerivatives``
+        of :attr:`input_slopes`); the worst FMI status."""
+        count = len(self.input_vrs)
+        if not count:
+            return 0
+        vr, _, orders, values, slopes = self._pointers
+        status = self.raw.set_real(self.slave.component, vr, count, values)
+        if derivatives and self.can_interpolate and status <= _WARNING:
+            status = max(status, self.raw.set_derivatives(self.slave.component, vr, count, orders, slopes))
+        return status
+
+    def do_step(self, t: float, h: float) -> int:
+        return self.raw.do_step(self.slave.component, t, h, 1)
+
+
+_WARNING = 1  #: worst FMI status that lets a run go on
+
+
+class _RawCalls:
+    """The FMI functions of the stepping loop, called on the binary directly (fixed argument types)."""
+
+    def __init__(self, dll):
+        pointer, size = c_void_p, c_size_t
+        self.set_real = self._function(dll, "fmi2SetReal", [pointer, pointer, size, pointer])
+        self.set_derivatives = self._function(dll, "fmi2SetRealInputDerivatives",
+                                              [pointer, pointer, size, pointer, pointer])
+        self.do_step = self._function(dll, "fmi2DoStep", [pointer, c_double, c_double, c_int])
+        self.get_real = self._function(dll, "fmi2GetReal", [pointer, pointer, size, pointer])
+
+    @staticmethod
+    def _function(dll, name, argtypes):
+        function = dll[name]          # a new function object: fmpy's own keeps its argument types
+        function.argtypes, function.restype = argtypes, c_int
+        return function
 
 
 class _Logger:
@@ -255,6 +317,7 @@ def _wire(instances: dict[str, _Instance], connections: list[Connection]) -> Non
         inst.input_vrs = [vr for vr, _, _ in wires[name]]
         inst.input_sources = np.array([source for _, source, _ in wires[name]], dtype=int)
         inst.stepped_before = np.array([producer < rank[name] for _, _, producer in wires[name]], dtype=bool)
+        inst.prepare()
 
 
 def _split(path: str) -> tuple[str, str]:
@@ -271,60 +334,79 @@ def _call(inst: _Instance, logger: _Logger, what: str, function, *args):
         raise SimulationError(f"{inst.name}: {what} failed ({exc}); FMU says: {logger.last(inst.name)}") from None
 
 
+_STATUS_WORDS = ("ok", "warning", "discard", "error", "fatal", "pending")
+
+
+def _check(inst: _Instance, logger: _Logger, what, status: int) -> None:
+    """Raise :class:`SimulationError` for a status worse than warning (``what`` may be a callable)."""
+    if status > _WARNING:
+        word = _STATUS_WORDS[status] if 0 <= status < len(_STATUS_WORDS) else str(status)
+        what = what() if callable(what) else what
+        raise SimulationError(f"{inst.name}: {what} failed (status {status} ({word})); "
+                              f"FMU says: {logger.last(inst.name)}")
+
+
 class _Stepper:
     """One communication round of all instances, in Gauss-Seidel or Jacobi order.
 
-    Holds the shared output array (``live``), the outputs at the current
-    communication point (``now``) and at the previous one (``before``, ``h_before``)
-    -- the history the linear coupling extrapolates from.
+    Holds the shared output array (``live``; every instance's ``fmi2GetReal`` writes its
+    slice), the outputs at the current communication point (``now``) and at the previous one
+    (``before``, ``h_before``) -- the history the linear coupling extrapolates from.
     """
 
     def __init__(self, instances: dict[str, _Instance], logger: _Logger, jacobi: bool, linear: bool):
         self.instances, self.logger, self.jacobi, self.linear = instances, logger, jacobi, linear
+        self.order = list(instances.values())
         self.live = np.zeros(sum(len(inst.outputs) for inst in instances.values()))
         offset = 0
-        for inst in instances.values():
-            inst.output_values = self.live[offset:offset + len(inst.outputs)]  # a view: refreshed in place
+        for inst in self.order:
+            inst.bind_outputs(self.live[offset:offset + len(inst.outputs)])  # a view: written in place
             offset += len(inst.outputs)
         self.now = self.live.copy()
         self.before: np.ndarray | None = None
         self.h_before = 0.0
-        self.feedthrough = [inst for inst in instances.values() if inst.feedthrough]
+        self.feedthrough = [inst for inst in self.order if inst.feedthrough]
 
     def settle(self, passes: int) -> None:
         """Propagate outputs to inputs until direct-feedthrough chains are consistent."""
         for _ in range(passes):
-            for inst in self.instances.values():
-                _call(inst, self.logger, "setting inputs", inst.set_inputs, self.live[inst.input_sources])
-                _call(inst, self.logger, "reading outputs", inst.refresh_outputs)
+            for inst in self.order:
+                inst.input_values[:] = self.live[inst.input_sources]
+                _check(inst, self.logger, "setting inputs", inst.set_inputs())
+                _check(inst, self.logger, "reading outputs", inst.refresh_outputs())
 
     def mark_communication_point(self) -> None:
         self.now = self.live.copy()
 
-    def _extrapolated_slopes(self) -> np.ndarray:
-        if self.before is None:
-            return np.zeros_like(self.now)
-        return (self.now - self.before) / self.h_before
-
     def round(self, t: float, h: float) -> None:
-        slopes = self._extrapolated_slopes() if self.linear else None
-        for inst in self.instances.values():
-            sources = inst.input_sources
-            if not self.linear:
-                values, derivatives = (self.now if self.jacobi else self.live)[sources], None
-            else:
-                values = self.now[sources]
-                derivatives = slopes[sources]
-                if not self.jacobi:  # producers already stepped: interpolate between t and t + h
-                    stepped = inst.stepped_before
-                    derivatives[stepped] = (self.live[sources][stepped] - values[stepped]) / h
-            _call(inst, self.logger, "setting inputs", inst.set_inputs, values, derivatives)
-            _call(inst, self.logger, f"doStep(t={t:.9g}, h={h:.3g})", inst.slave.doStep, t, h)
-            inst.refresh_outputs()
+        live, now, linear = self.live, self.now, self.linear
+        if linear:
+            slopes = (now - self.before) / self.h_before if self.before is not None else np.zeros_like(now)
+        source = now if linear or self.jacobi else live
+        for inst in self.order:
+            if inst.input_vrs:
+                sources = inst.input_sources
+                values = inst.input_values
+                values[:] = source[sources]
+                if linear:
+                    derivatives = inst.input_slopes
+                    derivatives[:] = slopes[sources]
+                    if not self.jacobi and inst.stepped_index.size:  # stepped already: interpolate t -> t + h
+                        derivatives[inst.stepped_index] = (live[inst.stepped_sources]
+                                                           - values[inst.stepped_index]) / h
+                status = inst.set_inputs(linear)
+                if status > _WARNING:
+                    _check(inst, self.logger, "setting inputs", status)
+            status = inst.do_step(t, h)
+            if status > _WARNING:
+                _check(inst, self.logger, lambda: f"doStep(t={t:.9g}, h={h:.3g})", status)
+            status = inst.refresh_outputs()
+            if status > _WARNING:
+                _check(inst, self.logger, "reading outputs", status)
         if self.jacobi and self.feedthrough:
             self.settle(len(self.feedthrough))
-        self.before, self.h_before = self.now, h
-        self.now = self.live.copy()
+        self.before, self.h_before = now, h
+        self.now = live.copy()
 
     def probe_initial_slopes(self, t: float, delta: float) -> None:
         """Estimate the outputs' slopes at the first point by a tiny held step, then roll back.
@@ -344,18 +426,18 @@ class _Stepper:
 
     # -- rollback (adaptive master)
     def save(self):
-        states = [_call(inst, self.logger, "getFMUstate", inst.slave.getFMUstate) for inst in self.instances.values()]
+        states = [_call(inst, self.logger, "getFMUstate", inst.slave.getFMUstate) for inst in self.order]
         return states, self.live.copy(), self.now.copy(), None if self.before is None else self.before.copy(), self.h_before
 
     def restore(self, saved) -> None:
         states, live, now, before, h_before = saved
-        for inst, state in zip(self.instances.values(), states):
+        for inst, state in zip(self.order, states):
             _call(inst, self.logger, "setFMUstate", inst.slave.setFMUstate, state)
         self.live[:] = live
         self.now, self.before, self.h_before = now.copy(), None if before is None else before.copy(), h_before
 
     def free(self, saved) -> None:
-        for inst, state in zip(self.instances.values(), saved[0]):
+        for inst, state in zip(self.order, saved[0]):
             inst.slave.freeFMUstate(state)
 
 
@@ -380,20 +462,24 @@ class Recorder:
 
 
 class MemoryRecorder(Recorder):
-    """Keeps every point in memory and returns a :class:`Result`."""
+    """Keeps every point in memory (a table that doubles when full) and returns a :class:`Result`."""
 
     def begin(self, columns: list[str]) -> None:
         super().begin(columns)
-        self.times: list[float] = []
-        self.rows: list[np.ndarray] = []
+        self._count = 0
+        self._table = np.empty((1024, len(self.columns) + 1))
 
     def record(self, t: float, values: np.ndarray) -> None:
-        self.times.append(float(t))
-        self.rows.append(np.array(values, dtype=float))
+        if self._count == len(self._table):
+            self._table = np.concatenate([self._table, np.empty_like(self._table)])
+        row = self._table[self._count]
+        row[0] = t
+        row[1:] = values
+        self._count += 1
 
     def result(self) -> Result:
-        values = np.array(self.rows) if self.rows else np.zeros((0, len(self.columns)))
-        return Result(np.array(self.times), list(self.columns), values.reshape(len(self.times), len(self.columns)))
+        table = self._table[:self._count]
+        return Result(table[:, 0].copy(), list(self.columns), table[:, 1:].copy())
 
 
 def _check_run_settings(stop_time, step, order, start_time, coupling, tolerance) -> None:
@@ -564,7 +650,7 @@ def _initialize(instances, starts: dict[str, dict[str, float]], stepper: _Steppe
     stepper.settle(len(instances) + 1)
     for inst in instances.values():
         _call(inst, logger, "exitInitializationMode", inst.slave.exitInitializationMode)
-        _call(inst, logger, "reading outputs", inst.refresh_outputs)
+        _check(inst, logger, "reading outputs", inst.refresh_outputs())
     if not np.all(np.isfinite(stepper.live)):
         bad = [inst.name for inst in instances.values() if not np.all(np.isfinite(inst.output_values))]
         raise SimulationError(f"initial outputs of {bad} are not finite; FMU says: "
