@@ -23,7 +23,6 @@ to compare).
 from __future__ import annotations
 
 import numpy as np
-from scipy import signal
 
 from .checks import ParameterError, as_matrix, as_vector, require_square
 from .standard_forms import standard_poles
@@ -142,7 +141,8 @@ def place(A, B, poles) -> np.ndarray:
     if B.shape[1] == 1:
         K = ackermann(A, B, poles)
     elif _max_multiplicity(poles) <= np.linalg.matrix_rank(B):
-        K = signal.place_poles(A, B, poles, method="YT").gain_matrix
+        from scipy.signal import place_poles   # here: scipy.signal costs ~0.5 s to import
+        K = place_poles(A, B, poles, method="YT").gain_matrix
     else:
         v = _cyclic_direction(A, B)
         if v is None:

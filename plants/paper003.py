@@ -23,11 +23,10 @@ from __future__ import annotations
 from typing import Mapping
 
 import numpy as np
-from scipy.linalg import expm
 
 from observers.block import Block, Segment
 from observers.checks import ParameterError, as_matrix, as_vector, require_square
-from observers.integrators import rk4_step
+from observers.integrators import expm, rk4_step
 
 from .signals import SampledNoise
 
