@@ -14,8 +14,8 @@ DEFAULT_BUILD = Path("build")
 
 
 def _validate(path: Path) -> list[str]:
-    from fmpy.validation import validate_fmu
-    return validate_fmu(str(path))
+    from .validation import validate_fmu
+    return validate_fmu(path)
 
 
 def _report_built(paths) -> int:
@@ -30,7 +30,7 @@ def _report_built(paths) -> int:
 
 def cmd_build(args) -> int:
     from .builder import build_fmu
-    from .scenarios import SCENARIOS, ensure_fmus
+    from .scenarios import SCENARIOS, ensure_all
 
     out = Path(args.out)
     if args.config:
@@ -38,9 +38,7 @@ def cmd_build(args) -> int:
         design = design_from_config(load_config(args.config))
         paths = [build_fmu(definition, out) for definition in design.definitions()]
     else:
-        paths = []
-        for scenario in SCENARIOS.values():
-            paths += [p for p in ensure_fmus(scenario, out, force=True).values() if p not in paths]
+        paths = list(ensure_all(SCENARIOS.values(), out, force=True).values())   # each FMU once
     return 1 if _report_built(paths) else 0
 
 

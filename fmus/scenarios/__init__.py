@@ -20,7 +20,7 @@ from ..definition import FmuDefinition
 from ..master import Component, Connection, SimulationError, System, cosimulate
 from ..result import Result
 
-__all__ = ["Scenario", "Summary", "SCENARIOS", "get", "ensure_fmus", "run", "parse_overrides"]
+__all__ = ["Scenario", "Summary", "SCENARIOS", "get", "ensure_fmus", "ensure_all", "run", "parse_overrides"]
 
 
 @dataclass
@@ -80,16 +80,40 @@ def get(name: str) -> Scenario:
         raise SimulationError(f"unknown scenario {name!r}; available: {', '.join(SCENARIOS)}") from None
 
 
-def ensure_fmus(scenario: Scenario, build_dir: Path, force: bool = False) -> dict[str, Path]:
-    """Build the scenario's FMUs into ``build_dir`` unless current ones are there."""
-    paths = {}
+def _items(scenario: Scenario):
     for item in scenario.definitions():
         definition, extra_modules = item if isinstance(item, tuple) else (item, ())
+        yield definition, tuple(extra_modules)
+
+
+def _ensure(items, build_dir: Path, force: bool) -> dict[str, Path]:
+    paths = {}
+    for definition, extra_modules in items:
         path = Path(build_dir) / f"{definition.model_name}.fmu"
         if force or not is_current(path, definition, extra_modules):
             build_fmu(definition, build_dir, extra_modules)
         paths[definition.model_name] = path
     return paths
+
+
+def ensure_fmus(scenario: Scenario, build_dir: Path, force: bool = False) -> dict[str, Path]:
+    """Build the scenario's FMUs into ``build_dir`` unless current ones are there."""
+    return _ensure(_items(scenario), build_dir, force)
+
+
+def ensure_all(scenarios, build_dir: Path, force: bool = False) -> dict[str, Path]:
+    """Every distinct FMU of ``scenarios``, each built once (``ltv-ls`` and ``ltv-ls-bounded`` share theirs).
+
+    Two scenarios naming the same model must define it identically (else :class:`SimulationError`).
+    """
+    distinct: dict[str, tuple] = {}
+    for scenario in scenarios:
+        for definition, extra_modules in _items(scenario):
+            known = distinct.setdefault(definition.model_name, (definition, extra_modules, scenario.name))
+            if (known[0].to_json(), known[1]) != (definition.to_json(), extra_modules):
+                raise SimulationError(f"{definition.model_name}: scenarios {known[2]!r} and {scenario.name!r} "
+                                      f"define this FMU differently")
+    return _ensure(((d, extra) for d, extra, _ in distinct.values()), build_dir, force)
 
 
 _OVERRIDE = re.compile(r"^(?P<instance>[A-Za-z_]\w*)\.(?P<variable>[^=]+)=(?P<value>.+)$")
