@@ -18,7 +18,7 @@ import numpy as np
 
 from fmus.definition import FmuDefinition
 from fmus.kinds import create_block, module_of
-from fmus.master import Connection
+from fmus.master import Connection, communication_points
 from observers.block import Segment
 
 __all__ = ["DirectLoop", "for_scenario"]
@@ -116,20 +116,17 @@ class DirectLoop:
             live[offset:offset + size] = outputs[name]
             offset += size
 
-    def run(self, stop_time: float, step: float, start_time: float = 0.0):
+    def run(self, stop_time: float, step: float, start_time: float = 0.0, ramp: int = 0):
         """Times and rows (every output of every block) at every communication point, ``t0`` included."""
         live = np.zeros(self.size)
         for _ in range(len(self.nodes) + 1):                      # settle direct feedthrough at t0
             for node in self.nodes:
                 node.values = np.where(node.connected, live[node.sources], node.values)
                 self._read(node, start_time, live, node.values)
-        steps = int(np.ceil((stop_time - start_time) / step - 1e-9))
-        times = np.minimum(start_time + step * np.arange(steps + 1), stop_time)
+        times, lengths = communication_points(start_time, stop_time, step, ramp)
         rows = [live.copy()]
         now, before, h_before = live.copy(), None, 0.0
-        for k in range(steps):
-            t = times[k]
-            h = step if k < steps - 1 else times[k + 1] - times[k]
+        for k, (t, h) in enumerate(zip(times, lengths)):
             slopes = (now - before) / h_before if before is not None else np.zeros_like(now)
             for node in self.nodes:
                 src, connected = node.sources, node.connected

@@ -66,7 +66,7 @@ from fmpy import calloc, free
 from .result import Result
 
 __all__ = ["Component", "Connection", "System", "SimulationError", "Session", "Recorder", "MemoryRecorder",
-           "cosimulate", "ORDERS", "COUPLINGS"]
+           "cosimulate", "communication_points", "ORDERS", "COUPLINGS"]
 
 ORDERS = ("gauss-seidel", "jacobi", "adaptive")
 COUPLINGS = ("linear", "hold")
@@ -553,7 +553,7 @@ class Session:
     def run(self, stop_time: float, step: float, order: str = "gauss-seidel", start_time: float = 0.0,
             coupling: str = "linear", progress: bool = False, tolerance: float = 1e-6,
             start: dict[str, dict[str, float]] | None = None, recorder: Recorder | None = None,
-            should_stop=None, time_unit: str = "s"):
+            should_stop=None, time_unit: str = "s", ramp: int = 0):
         """One run from ``start_time`` to ``stop_time``; see :func:`cosimulate` for the parameters.
 
         ``start`` maps instance names to extra start values for this run only.
@@ -588,7 +588,7 @@ class Session:
         if order == "adaptive":
             _adaptive(stepper, start_time, stop_time, step, tolerance, 2 if coupling == "linear" else 1, loop)
         else:
-            _fixed(stepper, start_time, stop_time, step, loop)
+            _fixed(stepper, start_time, stop_time, step, loop, ramp)
         loop.progress.close(loop.steps)
         if not loop.interrupted:
             for inst in self.instances.values():
@@ -602,7 +602,7 @@ class Session:
 def cosimulate(system: System, stop_time: float, step: float, order: str = "gauss-seidel",
                start_time: float = 0.0, coupling: str = "linear", progress: bool = False,
                echo_log: bool = True, tolerance: float = 1e-6, recorder: Recorder | None = None,
-               should_stop=None, time_unit: str = "s"):
+               should_stop=None, time_unit: str = "s", ramp: int = 0):
     """Run ``system`` once from ``start_time`` to ``stop_time`` (a fresh :class:`Session`).
 
     Parameters
@@ -623,6 +623,12 @@ def cosimulate(system: System, stop_time: float, step: float, order: str = "gaus
         Asked after every communication point; true ends the run there.
     time_unit : str
         Unit of the models' time, for the progress bar.
+    ramp : int
+        Fixed-step orders: split the first step into ``h/2^ramp, h/2^ramp, h/2^(ramp-1), ..., h/2``
+        (every point recorded; the grid ``start_time + k step`` is kept).  The linear coupling has
+        no history on the first step, and blocks that rebuild their inputs from past samples
+        (:class:`observers.ltv_stepping.PolynomialInputs`) need a few: their start-up error,
+        which otherwise sets the accuracy of the whole run, shrinks with the first steps.
 
     Returns
     -------
@@ -634,7 +640,7 @@ def cosimulate(system: System, stop_time: float, step: float, order: str = "gaus
     with Session(system, echo_log=echo_log) as session:
         return session.run(stop_time, step, order=order, start_time=start_time, coupling=coupling,
                            progress=progress, tolerance=tolerance, recorder=recorder,
-                           should_stop=should_stop, time_unit=time_unit)
+                           should_stop=should_stop, time_unit=time_unit, ramp=ramp)
 
 
 def _initialize(instances, starts: dict[str, dict[str, float]], stepper: _Stepper, start_time, stop_time,
@@ -679,12 +685,32 @@ class _Loop:
         return True
 
 
-def _fixed(stepper: _Stepper, start_time, stop_time, step, loop: _Loop) -> None:
+def communication_points(start_time: float, stop_time: float, step: float, ramp: int = 0):
+    """``(times, lengths)`` of a fixed-step run: ``t_k`` and ``h_k``, ``t_(k+1) = t_k + h_k``.
+
+    The grid ``start_time + k step`` (the last step shortened to land on ``stop_time``); with
+    ``ramp = r`` the first step is split into ``h/2^r, h/2^r, h/2^(r-1), ..., h/2`` (see
+    :meth:`Session.run`).  Every length is ``step`` times a power of two, so the FMUs' cached
+    discretisations are reused.
+    """
     steps = int(np.ceil((stop_time - start_time) / step - 1e-9))
     times = np.minimum(start_time + step * np.arange(steps + 1), stop_time)
+    lengths = np.full(steps, float(step))
+    lengths[-1] = times[-1] - times[-2]
+    if ramp > 0:
+        first = lengths[0]
+        head = first * 2.0 ** -np.concatenate([[ramp], np.arange(ramp, 0, -1)])
+        head_times = times[0] + np.concatenate([[0.0], np.cumsum(head)[:-1]])
+        times = np.concatenate([head_times, times[1:]])
+        lengths = np.concatenate([head, lengths[1:]])
+    return times, lengths
+
+
+def _fixed(stepper: _Stepper, start_time, stop_time, step, loop: _Loop, ramp: int = 0) -> None:
+    times, lengths = communication_points(start_time, stop_time, step, ramp)
+    steps = len(lengths)
     for k in range(steps):
-        h = step if k < steps - 1 else times[k + 1] - times[k]  # one step length: cached discretisations
-        stepper.round(times[k], h)
+        stepper.round(times[k], lengths[k])
         loop.record(times[k + 1], stepper.live)
         if not loop.accepted(times[k + 1], (k + 1) / steps):
             return

@@ -52,6 +52,10 @@ class Scenario:
     time_unit: str = "s"  #: the unit of time of the models (``h`` for the chemostat)
     #: spacing of the rows that ``obsfmu all`` writes to CSV (None: every communication point)
     output_interval: float | None = None
+    #: why the adaptive master cannot run this scenario (it is then refused at once), or None
+    not_adaptive: str | None = None
+    #: the first step split into h/2^ramp, ..., h/2 (see :func:`fmus.master.cosimulate`)
+    ramp: int = 0
 
 
 def _registry() -> dict[str, Scenario]:
@@ -151,6 +155,8 @@ def run(name: str, build_dir: Path | str = "build", *, stop_time: float | None =
         overrides=(), progress: bool = False, tolerance: float = 1e-6) -> tuple[Result, Summary | None]:
     """Build (if needed) and co-simulate scenario ``name``; returns the result and its summary."""
     scenario = get(name)
+    if (order or scenario.order) == "adaptive" and scenario.not_adaptive:
+        raise SimulationError(f"{name}: the adaptive master cannot run this scenario: {scenario.not_adaptive}")
     fmus = ensure_fmus(scenario, Path(build_dir))
     result = cosimulate(system(scenario, fmus, overrides),
                         stop_time=scenario.stop_time if stop_time is None else stop_time,
@@ -158,5 +164,6 @@ def run(name: str, build_dir: Path | str = "build", *, stop_time: float | None =
                         order=order or scenario.order,
                         coupling=coupling or scenario.coupling,
                         progress=progress,
-                        tolerance=tolerance)
+                        tolerance=tolerance,
+                        ramp=scenario.ramp)
     return result, scenario.summarize(result) if scenario.summarize else None

@@ -164,4 +164,5 @@ SCENARIO = Scenario(
     coupling="linear",
     summarize=summarize,
     plot=plot,
+    not_adaptive="its plant and observer are discrete: they take steps of exactly one sample period Ts",
 )
