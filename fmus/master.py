@@ -47,6 +47,8 @@ vector -- no Python list, no per-call marshalling (fmpy's wrappers cost
 from __future__ import annotations
 
 import difflib
+import hashlib
+import os
 import shutil
 import sys
 import tempfile
@@ -105,10 +107,42 @@ def _closest(name: str, candidates) -> str:
     return f"; did you mean {', '.join(close)}?" if close else ""
 
 
+#: extracted FMUs, by content (``OBSFMU_CACHE`` overrides); the newest are kept
+EXTRACT_CACHE = Path(os.environ.get("OBSFMU_CACHE", Path.home() / ".cache" / "obsfmu")) / "extracted"
+EXTRACT_CACHE_SIZE = 64
+
+
+def _extracted(fmu: Path) -> Path:
+    """The FMU unzipped once per content (sha256) into :data:`EXTRACT_CACHE` and reused.
+
+    A run used to unzip every FMU into a fresh directory (its bundled code: ~100 files) and
+    delete it afterwards -- 0.15 s of every ``obsfmu run``, plus compiling the bundled modules
+    again each time.  Entries are written to a temporary sibling and renamed (concurrent runs
+    never see a partial one); beyond :data:`EXTRACT_CACHE_SIZE` the least recently used go.
+    """
+    digest = hashlib.sha256(Path(fmu).read_bytes()).hexdigest()[:32]
+    target = EXTRACT_CACHE / digest
+    if target.is_dir():
+        os.utime(target)
+        return target
+    EXTRACT_CACHE.mkdir(parents=True, exist_ok=True)
+    partial = Path(tempfile.mkdtemp(prefix=f".{digest}.", dir=EXTRACT_CACHE))
+    extract(str(fmu), unzipdir=str(partial))
+    try:
+        os.replace(partial, target)
+    except OSError:                      # another run extracted it meanwhile
+        shutil.rmtree(partial, ignore_errors=True)
+    entries = sorted((e for e in EXTRACT_CACHE.iterdir() if not e.name.startswith(".")),
+                     key=lambda e: e.stat().st_mtime, reverse=True)
+    for stale in entries[EXTRACT_CACHE_SIZE:]:
+        shutil.rmtree(stale, ignore_errors=True)
+    return target
+
+
 class _Instance:
     """An instantiated FMU with name -> value-reference maps and an output cache."""
 
-    def __init__(self, component: Component, unzip_root: Path, log):
+    def __init__(self, component: Component, log):
         self.name = component.name
         fmu = Path(component.fmu)
         if not fmu.is_file():
@@ -123,7 +157,7 @@ class _Instance:
         capabilities = self.description.coSimulation
         self.can_interpolate = bool(capabilities.canInterpolateInputs)
         self.can_save_state = bool(capabilities.canGetAndSetFMUstate)
-        directory = extract(str(fmu), unzipdir=str(unzip_root / self.name))
+        directory = str(_extracted(fmu))
         self._log = log
         self.slave = FMU2Slave(guid=self.description.guid, unzipDirectory=directory,
                                modelIdentifier=self.description.coSimulation.modelIdentifier,
@@ -516,12 +550,11 @@ class Session:
             raise SimulationError(f"components: instance names must be unique, got {names}")
         self.system = system
         self.logger = _Logger(echo_log)
-        self._unzip_root = Path(tempfile.mkdtemp(prefix="obsfmu_run_"))
         self.instances: dict[str, _Instance] = {}
         self._fresh = True
         try:
             for component in system.components:
-                self.instances[component.name] = _Instance(component, self._unzip_root, self.logger)
+                self.instances[component.name] = _Instance(component, self.logger)
             _wire(self.instances, system.connections)
             for inst in self.instances.values():
                 inst.slave.instantiate(callbacks=self.logger.callbacks, loggingOn=True)
@@ -538,7 +571,7 @@ class Session:
         self.close()
 
     def close(self) -> None:
-        """Free the instances and delete the extracted FMUs (idempotent)."""
+        """Free the instances (idempotent); the extracted FMUs stay in the cache (:func:`_extracted`)."""
         for inst in self.instances.values():
             try:
                 if getattr(inst, "instantiated", False):
@@ -548,7 +581,6 @@ class Session:
             except Exception:
                 pass
         self.instances = {}
-        shutil.rmtree(self._unzip_root, ignore_errors=True)
 
     def run(self, stop_time: float, step: float, order: str = "gauss-seidel", start_time: float = 0.0,
             coupling: str = "linear", progress: bool = False, tolerance: float = 1e-6,
