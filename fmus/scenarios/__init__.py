@@ -152,8 +152,12 @@ def system(scenario: Scenario, fmus: dict[str, Path], overrides=()) -> System:
 
 def run(name: str, build_dir: Path | str = "build", *, stop_time: float | None = None,
         step: float | None = None, order: str | None = None, coupling: str | None = None,
-        overrides=(), progress: bool = False, tolerance: float = 1e-6) -> tuple[Result, Summary | None]:
-    """Build (if needed) and co-simulate scenario ``name``; returns the result and its summary."""
+        overrides=(), progress: bool = False, tolerance: float = 1e-6,
+        ramp: int | None = None) -> tuple[Result, Summary | None]:
+    """Build (if needed) and co-simulate scenario ``name``; returns the result and its summary.
+
+    ``None`` for a setting means the scenario's default (``ramp``: its start-up ramp).
+    """
     scenario = get(name)
     if (order or scenario.order) == "adaptive" and scenario.not_adaptive:
         raise SimulationError(f"{name}: the adaptive master cannot run this scenario: {scenario.not_adaptive}")
@@ -165,5 +169,5 @@ def run(name: str, build_dir: Path | str = "build", *, stop_time: float | None =
                         coupling=coupling or scenario.coupling,
                         progress=progress,
                         tolerance=tolerance,
-                        ramp=scenario.ramp)
+                        ramp=scenario.ramp if ramp is None else ramp)
     return result, scenario.summarize(result) if scenario.summarize else None
