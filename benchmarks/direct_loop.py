@@ -123,10 +123,9 @@ class DirectLoop:
             for node in self.nodes:
                 node.values = np.where(node.connected, live[node.sources], node.values)
                 self._read(node, start_time, live, node.values)
-        times, lengths = communication_points(start_time, stop_time, step, ramp)
-        rows = [live.copy()]
+        times, rows = [start_time], [live.copy()]
         now, before, h_before = live.copy(), None, 0.0
-        for k, (t, h) in enumerate(zip(times, lengths)):
+        for t, h, t_next in communication_points(start_time, stop_time, step, ramp):
             slopes = (now - before) / h_before if before is not None else np.zeros_like(now)
             for node in self.nodes:
                 src, connected = node.sources, node.connected
@@ -143,7 +142,8 @@ class DirectLoop:
                 self._read(node, t + h, live, node.values)
             before, h_before, now = now, h, live.copy()
             rows.append(now)
-        return times, np.array(rows)
+            times.append(t_next)
+        return np.array(times), np.array(rows)
 
 
 def for_scenario(scenario) -> DirectLoop:

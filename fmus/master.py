@@ -718,33 +718,32 @@ class _Loop:
 
 
 def communication_points(start_time: float, stop_time: float, step: float, ramp: int = 0):
-    """``(times, lengths)`` of a fixed-step run: ``t_k`` and ``h_k``, ``t_(k+1) = t_k + h_k``.
+    """The steps of a fixed-step run, ``(t, h, t_next)``, generated as they come (bounded memory).
 
     The grid ``start_time + k step`` (the last step shortened to land on ``stop_time``); with
     ``ramp = r`` the first step is split into ``h/2^r, h/2^r, h/2^(r-1), ..., h/2`` (see
-    :meth:`Session.run`).  Every length is ``step`` times a power of two, so the FMUs' cached
-    discretisations are reused.
+    :func:`cosimulate`).  Every length is ``step`` times a power of two, so the FMUs' cached
+    discretisations are reused, and the ramp ends exactly on the grid.
     """
     steps = int(np.ceil((stop_time - start_time) / step - 1e-9))
-    times = np.minimum(start_time + step * np.arange(steps + 1), stop_time)
-    lengths = np.full(steps, float(step))
-    lengths[-1] = times[-1] - times[-2]
-    if ramp > 0:
-        first = lengths[0]
-        head = first * 2.0 ** -np.concatenate([[ramp], np.arange(ramp, 0, -1)])
-        head_times = times[0] + np.concatenate([[0.0], np.cumsum(head)[:-1]])
-        times = np.concatenate([head_times, times[1:]])
-        lengths = np.concatenate([head, lengths[1:]])
-    return times, lengths
+    for k in range(steps):
+        t, t_next = start_time + step * k, min(start_time + step * (k + 1), stop_time)
+        h = step if k < steps - 1 else t_next - t  # one step length: cached discretisations
+        if k == 0 and ramp > 0:
+            offset = 0.0
+            for j in [ramp] + list(range(ramp, 0, -1)):
+                yield t + offset, h * 2.0 ** -j, t + (offset + h * 2.0 ** -j)
+                offset += h * 2.0 ** -j
+            continue
+        yield t, h, t_next
 
 
 def _fixed(stepper: _Stepper, start_time, stop_time, step, loop: _Loop, ramp: int = 0) -> None:
-    times, lengths = communication_points(start_time, stop_time, step, ramp)
-    steps = len(lengths)
-    for k in range(steps):
-        stepper.round(times[k], lengths[k])
-        loop.record(times[k + 1], stepper.live)
-        if not loop.accepted(times[k + 1], (k + 1) / steps):
+    steps = int(np.ceil((stop_time - start_time) / step - 1e-9)) + (ramp if ramp > 0 else 0)
+    for k, (t, h, t_next) in enumerate(communication_points(start_time, stop_time, step, ramp)):
+        stepper.round(t, h)
+        loop.record(t_next, stepper.live)
+        if not loop.accepted(t_next, (k + 1) / steps):
             return
 
 

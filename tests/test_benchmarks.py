@@ -29,9 +29,9 @@ def test_the_direct_loop_is_the_fmu_path_without_fmi(build_dir, name, stop_time,
 
 
 def test_the_start_up_ramp_splits_only_the_first_step():
-    times, lengths = communication_points(0.0, 1.0, 0.25, ramp=3)
-    np.testing.assert_array_equal(lengths, [0.03125, 0.03125, 0.0625, 0.125, 0.25, 0.25, 0.25])
-    np.testing.assert_array_equal(times, [0.0, 0.03125, 0.0625, 0.125, 0.25, 0.5, 0.75, 1.0])
-    times, lengths = communication_points(0.0, 0.6, 0.25)
-    np.testing.assert_array_equal(times, [0.0, 0.25, 0.5, 0.6])
-    assert lengths[-1] == pytest.approx(0.1)
+    steps = list(communication_points(0.0, 1.0, 0.25, ramp=3))
+    assert [h for _, h, _ in steps] == [0.03125, 0.03125, 0.0625, 0.125, 0.25, 0.25, 0.25]
+    assert [t for t, _, _ in steps] + [steps[-1][2]] == [0.0, 0.03125, 0.0625, 0.125, 0.25, 0.5, 0.75, 1.0]
+    assert all(t + h == t_next for t, h, t_next in steps[:4])          # the ramp lands on the grid exactly
+    steps = list(communication_points(0.0, 0.6, 0.25))
+    assert [t_next for _, _, t_next in steps] == [0.25, 0.5, 0.6] and steps[-1][1] == pytest.approx(0.1)
