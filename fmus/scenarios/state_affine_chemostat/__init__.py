@@ -102,4 +102,5 @@ SCENARIO = Scenario(
     coupling="linear",
     summarize=summarize,
     plot=plot,
+    not_adaptive=common.NOT_ADAPTIVE,
 )
