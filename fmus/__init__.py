@@ -2,6 +2,6 @@
 the co-simulation master, scenarios and the command line.
 
 Importing this package is cheap and does not import fmpy; the bundled copy
-inside every FMU only needs ``fmus.definition``, ``fmus.kinds`` and
-``fmus.slave``.
+inside every FMU only needs ``fmus.definition``, ``fmus.kinds``, ``fmus.bundle``
+and ``fmus.slave``.
 """

@@ -6,7 +6,8 @@ module-level functions in a ``.py`` file; the FMU definition stores only a
 reference ``"module:function"`` and the builder bundles the file into the
 FMU (``build_fmu(..., extra_modules=[path])``).  At run time
 :func:`resolve` imports the module and looks the name up -- the string is
-checked against a strict pattern and is never evaluated.
+checked against a strict pattern and is never evaluated.  Inside an FMU the bundled modules
+run relocated (:mod:`fmus.bundle`): ``"plants.paper001:f_sin"`` then names the FMU's own copy.
 """
 
 from __future__ import annotations
@@ -16,6 +17,8 @@ import re
 from collections.abc import Callable
 
 from observers.checks import ParameterError
+
+from .bundle import local_name, portable_name
 
 __all__ = ["reference", "resolve"]
 
@@ -28,7 +31,7 @@ def reference(function: Callable) -> str:
     if not module or module == "__main__" or "." in name or "<" in name:
         raise ParameterError(f"{name or function!r}: only module-level functions of an importable module "
                              "can be bundled into an FMU (not lambdas, closures or __main__ functions)")
-    return f"{module}:{name}"
+    return f"{portable_name(module)}:{name}"
 
 
 def resolve(ref: str, what: str = "function") -> Callable:
@@ -37,7 +40,7 @@ def resolve(ref: str, what: str = "function") -> Callable:
         raise ParameterError(f"{what}: {ref!r} is not a 'module:function' reference")
     module_name, name = ref.split(":")
     try:
-        module = importlib.import_module(module_name)
+        module = importlib.import_module(local_name(module_name))
     except ImportError as exc:
         raise ParameterError(f"{what}: cannot import module {module_name!r} ({exc}); was it bundled "
                              "with extra_modules when the FMU was built?") from None

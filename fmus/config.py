@@ -104,11 +104,21 @@ def load_config(path: Path | str) -> dict:
     path = Path(path)
     try:
         with open(path, "rb") as handle:
-            return tomllib.load(handle)
+            config = tomllib.load(handle)
     except FileNotFoundError:
         raise ParameterError(f"config: file {path} does not exist") from None
+    except IsADirectoryError:
+        raise ParameterError(f"config {path}: is a directory, expected a TOML file") from None
+    except OSError as exc:
+        raise ParameterError(f"config {path}: cannot be read ({exc.strerror or exc})") from None
     except tomllib.TOMLDecodeError as exc:
         raise ParameterError(f"config {path}: {exc}") from None
+    except UnicodeDecodeError:
+        raise ParameterError(f"config {path}: not a UTF-8 text file") from None
+    if not config:
+        raise ParameterError(f"config {path}: the file is empty; a design needs at least name, [plant] "
+                             "and [observer]")
+    return config
 
 
 def _check_keys(section: str, table) -> None:
@@ -119,6 +129,20 @@ def _check_keys(section: str, table) -> None:
         where = f"{section}." if section else ""
         raise ParameterError(f"{where}{sorted(unknown)[0]}: unknown field; expected one of "
                              f"{sorted(_SECTIONS[section])}")
+
+
+#: fields that hold numbers (TOML booleans are refused there, although numpy would take them as 0/1)
+_NUMERIC = {"plant": ("A", "B", "C", "D", "x0"), "observer": ("poles", "t_settle", "N", "x_hat0"),
+            "controller": ("poles", "t_settle", "K")}
+
+
+def _reject_booleans(field: str, value, index: tuple[int, ...] = ()) -> None:
+    if isinstance(value, bool):
+        where = f"entry {index} is" if index else "got"
+        raise ParameterError(f"{field}: {where} {str(value).lower()}, expected a number (booleans are not numbers)")
+    if isinstance(value, list):
+        for i, item in enumerate(value):
+            _reject_booleans(field, item, index + (i + 1,))
 
 
 def _units(plant: dict, model: StateSpace) -> dict:
@@ -196,7 +220,9 @@ def _require_bounded_transient(name: str, closed_loop: np.ndarray) -> None:
 def design_from_config(config: dict) -> LinearDesign:
     """Check a parsed config and design its gains; raises :class:`ParameterError` naming the field."""
     _check_keys("", config)
-    name = config.get("name")
+    if "name" not in config:
+        raise ParameterError("name: missing; the FMUs are called NAME_observer, NAME_plant, NAME_controller")
+    name = config["name"]
     if not isinstance(name, str) or not valid_identifier(name):
         raise ParameterError(f"name: expected an identifier (letters, digits, _), got {name!r}")
     for section in ("plant", "observer"):
@@ -205,6 +231,11 @@ def design_from_config(config: dict) -> LinearDesign:
     plant, observer = config["plant"], config["observer"]
     _check_keys("plant", plant)
     _check_keys("observer", observer)
+    for section, keys in _NUMERIC.items():
+        table = config.get(section, {})
+        for key in keys:
+            if isinstance(table, dict) and key in table:
+                _reject_booleans(f"{section}.{key}", table[key])
     for key in ("A", "C"):
         if key not in plant:
             raise ParameterError(f"plant.{key}: missing")

@@ -92,6 +92,14 @@ class Parameter:
         """A single number, named without index."""
         return cls.of(name, np.array(float(value)), description, unit)
 
+    @classmethod
+    def substep_budget(cls, value=None) -> "Parameter":
+        """``substep_budget`` of a block that sub-steps (:func:`observers.integrators.substep_count`)."""
+        from observers.integrators import DEFAULT_SUBSTEP_BUDGET
+        return cls.scalar("substep_budget", DEFAULT_SUBSTEP_BUDGET if value is None else value,
+                          "most sub-steps one communication step may take; a step needing more is refused "
+                          "(fmi2Discard) before any work")
+
     @property
     def element_names(self) -> list[str]:
         return element_names(self.name, tuple(self.naming_shape))
@@ -114,6 +122,8 @@ class FmuDefinition:
     kind_module: str = ""  #: module registering ``kind`` (filled in by the builder)
     options: dict[str, Any] = field(default_factory=dict)
     default_experiment: dict[str, float] | None = None
+    #: canHandleVariableCommunicationStepSize: False for blocks that accept one step length only
+    variable_step: bool = True
 
     def to_json(self) -> str:
         return json.dumps(asdict(self), indent=1)

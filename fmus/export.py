@@ -12,19 +12,40 @@ master) and hold inputs between communication points; with
 ``coupling="linear"`` the export sets every connected input's
 ``<port>_interpolation`` to 1 (extrapolate from the previous point), which
 makes the FMUs do inside what our master does with input derivatives.
+
+The configuration survives importers that ignore the parameter bindings (FMU
+Manipulation Toolbox's ``fmucontainer`` does): every exported FMU is a copy
+whose ``modelDescription.xml`` declares the system's start values and whose
+binary sets them itself at instantiation and reset (``resources/obsfmu_start.txt``,
+``fmus/native/loader_common.h``); instances of one model with different start
+values get one copy each.  The SSD also declares the system's outputs: one
+system connector ``<instance>.<variable>`` per output of every component and
+(``system_outputs=True``, the default) a connection to it, so a container built
+from it exposes every output.  libcosim and ECOS reject connections to the
+system's own connectors (SSP 1.0 allows them: no ``endElement``): export for
+them with ``system_outputs=False`` (``--no-system-outputs``).
+
+FMI 3.0 FMUs (``fmi_version=3``) export as SSP only: SSP 1.0 connects and binds
+scalars, so connections join whole FMI 3.0 variables and the bindings hold the
+scalar parameters; array start values live in the FMU copies.  OSP system
+structures name FMI 2.0 scalar variables (libcosim imports FMI 1.0/2.0).
 """
 
 from __future__ import annotations
 
-import shutil
+import math
 import zipfile
 from pathlib import Path
 from xml.dom import minidom
-from xml.etree.ElementTree import Element, SubElement, tostring
+from xml.etree.ElementTree import Element, SubElement, fromstring, tostring
 
 from fmpy import read_model_description
 
-from .master import SimulationError
+from .fmi3 import TABLE
+from .fmi3.description import read_table
+from .fmi3.elements import elements
+from .master import COUPLINGS, SimulationError
+from .native import STARTS
 from .scenarios import Scenario, ensure_fmus, system
 
 __all__ = ["FORMATS", "export"]
@@ -43,13 +64,18 @@ def _pretty(root: Element) -> bytes:
 
 
 class _Exported:
-    """The scenario's system resolved to element-wise connections and typed start values."""
+    """The scenario's system resolved to element-wise connections and typed start values.
 
-    def __init__(self, scenario: Scenario, build_dir: Path, overrides, coupling: str):
-        fmus = ensure_fmus(scenario, build_dir)
+    Names are FMI 2.0 element names (``x0[1]``) for both FMI versions (:mod:`fmus.fmi3.elements`).
+    """
+
+    def __init__(self, scenario: Scenario, build_dir: Path, overrides, coupling: str, fmi_version: int = 2):
+        fmus = ensure_fmus(scenario, build_dir, fmi_version=fmi_version)
+        self.fmi_version = fmi_version
         self.system = system(scenario, fmus, overrides)
-        self.variables = {c.name: {v.name: v for v in read_model_description(str(c.fmu)).modelVariables}
-                          for c in self.system.components}
+        descriptions = {c.name: read_model_description(str(c.fmu)) for c in self.system.components}
+        self.variables = {name: elements(md) if fmi_version == 3 else {v.name: v for v in md.modelVariables}
+                          for name, md in descriptions.items()}
         self.connections = [pair for connection in self.system.connections for pair in self._elements(connection)]
         self.start = {c.name: dict(c.start) for c in self.system.components}
         if coupling == "linear":
@@ -78,16 +104,103 @@ class _Exported:
             kind = self.variables[instance][name].type
             yield name, kind, (str(int(value)) if kind == "Integer" else repr(float(value)))
 
+    def bindings(self, instance: str):
+        """The start values SSP 1.0 can bind: all (FMI 2.0), those of scalar variables (FMI 3.0)."""
+        variables = self.variables[instance]
+        return [item for item in self.typed_start(instance)
+                if self.fmi_version == 2 or variables[item[0]].size == 1]
+
+    def fmu_connections(self):
+        """Connections in the FMUs' own names: elements (FMI 2.0), whole variables (FMI 3.0)."""
+        if self.fmi_version == 2:
+            return self.connections
+        whole = []
+        for (src, out), (dst, inp) in self.connections:
+            source, target = self.variables[src][out], self.variables[dst][inp]
+            if source.index != target.index or source.size != target.size:
+                raise SimulationError(f"{src}.{out} -> {dst}.{inp}: SSP 1.0 connects whole variables; this joins "
+                                      f"elements of the FMI 3.0 arrays {src}.{source.variable} and "
+                                      f"{dst}.{target.variable}: export FMI 2.0 FMUs for this system")
+            pair = ((src, source.variable), (dst, target.variable))
+            if pair not in whole:
+                whole.append(pair)
+        return whole
+
+    def ports(self, instance: str) -> list[tuple[str, str, str]]:
+        """(name in the FMU, type, causality) of every input and output (whole variables for FMI 3.0)."""
+        found = {}
+        for name, variable in self.variables[instance].items():
+            if variable.causality in ("input", "output"):
+                key = name if self.fmi_version == 2 else variable.variable
+                found.setdefault(key, (key, variable.type, variable.causality))
+        return list(found.values())
+
+    def copies(self) -> dict[str, tuple[Path, str]]:
+        """instance -> (its FMU, the name of its configured copy): one copy per model and start values."""
+        names, seen = {}, {}
+        for component in self.system.components:
+            fmu = Path(component.fmu)
+            key = (fmu, tuple(self.typed_start(component.name)))
+            taken = [k for k in seen if k[0] == fmu and k != key]
+            seen.setdefault(key, fmu.name if not taken else f"{fmu.stem}_{component.name}.fmu")
+            names[component.name] = (fmu, seen[key])
+        return names
+
+    def write_copy(self, instance: str, target: Path) -> None:
+        """The FMU of ``instance`` with its start values as the copy's own (modelDescription + loader)."""
+        fmu, _ = self.copies()[instance]
+        values = list(self.typed_start(instance))
+        with zipfile.ZipFile(fmu) as source, zipfile.ZipFile(target, "w", zipfile.ZIP_DEFLATED) as copy:
+            table = source.read(f"resources/{TABLE}").decode() if self.fmi_version == 3 else ""
+            for item in source.infolist():
+                data = source.read(item)
+                if item.filename == "modelDescription.xml" and values:
+                    data = self._described(instance, data, values)
+                copy.writestr(zipfile.ZipInfo(item.filename, item.date_time), data, zipfile.ZIP_DEFLATED)
+            if values:
+                copy.writestr(f"resources/{STARTS}", self._starts(instance, values, table))
+
+    def _described(self, instance: str, description: bytes, values) -> bytes:
+        root = fromstring(description)
+        if self.fmi_version == 2:
+            by_name = {v.get("name"): v for v in root.iter("ScalarVariable")}
+            for name, kind, text in values:
+                by_name[name].find(kind).set("start", text)
+        else:
+            by_name = {v.get("name"): v for v in root.find("ModelVariables")}
+            for name, _, text in values:
+                element = self.variables[instance][name]
+                starts = by_name[element.variable].get("start").split()
+                starts[element.index] = text
+                by_name[element.variable].set("start", " ".join(starts))
+        return b'<?xml version="1.0" encoding="UTF-8"?>\n' + tostring(root, encoding="utf-8")
+
+    def _starts(self, instance: str, values, table: str) -> str:
+        """``resources/obsfmu_start.txt``: the slave's value reference of each start value."""
+        lines = ["# obsfmu export: start values the binary sets at instantiation and reset (loader_common.h)"]
+        scalars = read_table(table)
+        for name, kind, text in values:
+            variable = self.variables[instance][name]
+            reference = (variable.valueReference if self.fmi_version == 2
+                         else scalars[variable.variable][variable.index])
+            lines.append(f"{'I' if kind == 'Integer' else 'R'} {reference} {text}")
+        return "\n".join(lines) + "\n"
+
 
 def _osp(exported: _Exported, scenario: Scenario, out_dir: Path, step: float) -> Path:
+    if exported.fmi_version != 2:
+        raise SimulationError("format 'osp': OSP system structures name FMI 2.0 scalar variables (libcosim imports "
+                              "FMI 1.0/2.0 FMUs); export FMI 3.0 FMUs as 'ssp'")
     root = Element("OspSystemStructure", {"xmlns": OSP_NS, "version": "0.1"})
     SubElement(root, "StartTime").text = "0.0"
     SubElement(root, "BaseStepSize").text = repr(step)
     SubElement(root, "Algorithm").text = "fixedStep"
     simulators = SubElement(root, "Simulators")
+    copies = exported.copies()
     for component in exported.system.components:
-        shutil.copy2(component.fmu, out_dir / Path(component.fmu).name)
-        simulator = SubElement(simulators, "Simulator", {"name": component.name, "source": Path(component.fmu).name})
+        copy = copies[component.name][1]
+        exported.write_copy(component.name, out_dir / copy)
+        simulator = SubElement(simulators, "Simulator", {"name": component.name, "source": copy})
         values = list(exported.typed_start(component.name))
         if values:
             initial = SubElement(simulator, "InitialValues")
@@ -103,23 +216,31 @@ def _osp(exported: _Exported, scenario: Scenario, out_dir: Path, step: float) ->
     return path
 
 
-def _ssd(exported: _Exported, scenario: Scenario, step: float, stop_time: float) -> bytes:
+def _ssd(exported: _Exported, scenario: Scenario, step: float, stop_time: float, system_outputs: bool) -> bytes:
     root = Element("ssd:SystemStructureDescription", {
         "xmlns:ssd": SSD_NS, "xmlns:ssc": SSC_NS, "xmlns:ssv": SSV_NS,
         "version": "1.0", "name": scenario.name, "generationTool": "obsfmu"})
     system_node = SubElement(root, "ssd:System", {"name": scenario.name, "description": scenario.description})
-    connected = {end for pair in exported.connections for end in pair}
+    wiring = exported.fmu_connections()
+    connected = {end for pair in wiring for end in pair}
+    outputs = [(c.name, name, kind) for c in exported.system.components
+               for name, kind, causality in exported.ports(c.name) if causality == "output"]
+    system_connectors = SubElement(system_node, "ssd:Connectors")  # the system's outputs: every component output
+    for instance, name, kind in outputs:
+        connector = SubElement(system_connectors, "ssd:Connector", {"name": f"{instance}.{name}", "kind": "output"})
+        SubElement(connector, f"ssc:{kind}")
     elements = SubElement(system_node, "ssd:Elements")
+    copies = exported.copies()
     for component in exported.system.components:
         node = SubElement(elements, "ssd:Component", {
             "name": component.name, "type": "application/x-fmu-sharedlibrary",
-            "source": f"resources/{Path(component.fmu).name}"})
+            "source": f"resources/{copies[component.name][1]}"})
         connectors = SubElement(node, "ssd:Connectors")
-        for name, variable in exported.variables[component.name].items():
-            if variable.causality in ("input", "output") and (component.name, name) in connected:
-                connector = SubElement(connectors, "ssd:Connector", {"name": name, "kind": variable.causality})
-                SubElement(connector, f"ssc:{variable.type}")
-        values = list(exported.typed_start(component.name))
+        for name, kind, causality in exported.ports(component.name):
+            if causality == "output" or (component.name, name) in connected:
+                connector = SubElement(connectors, "ssd:Connector", {"name": name, "kind": causality})
+                SubElement(connector, f"ssc:{kind}")
+        values = exported.bindings(component.name)
         if values:
             binding = SubElement(SubElement(node, "ssd:ParameterBindings"), "ssd:ParameterBinding")
             parameter_set = SubElement(SubElement(binding, "ssd:ParameterValues"), "ssv:ParameterSet",
@@ -128,29 +249,46 @@ def _ssd(exported: _Exported, scenario: Scenario, step: float, stop_time: float)
             for name, kind, text in values:
                 SubElement(SubElement(parameters, "ssv:Parameter", {"name": name}), f"ssv:{kind}", {"value": text})
     connections = SubElement(system_node, "ssd:Connections")
-    for (src, out), (dst, inp) in exported.connections:
+    for (src, out), (dst, inp) in wiring:
         SubElement(connections, "ssd:Connection", {"startElement": src, "startConnector": out,
                                                    "endElement": dst, "endConnector": inp})
+    for instance, name, _ in outputs if system_outputs else ():  # no endElement: the system's own connector
+        SubElement(connections, "ssd:Connection", {"startElement": instance, "startConnector": name,
+                                                   "endConnector": f"{instance}.{name}"})
     SubElement(root, "ssd:DefaultExperiment", {"startTime": "0.0", "stopTime": repr(stop_time)})
     return _pretty(root)
 
 
 def export(scenario: Scenario, fmt: str, out_dir: Path | str, build_dir: Path | str = "build", *,
            step: float | None = None, stop_time: float | None = None, overrides=(),
-           coupling: str | None = None) -> Path:
-    """Write the scenario for another tool; returns the ``.xml`` (osp) or ``.ssp`` file."""
+           coupling: str | None = None, fmi_version: int = 2, system_outputs: bool = True) -> Path:
+    """Write the scenario for another tool; returns the ``.xml`` (osp) or ``.ssp`` file.
+
+    ``fmi_version`` 3 exports the scenario's FMI 3.0 FMUs (SSP only).  ``system_outputs=False``
+    leaves out the SSD's connections to the system's output connectors (for libcosim and ECOS).
+    """
     if fmt not in FORMATS:
         raise SimulationError(f"format: {fmt!r} is not one of {FORMATS}")
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
     step = scenario.step if step is None else step
     stop_time = scenario.stop_time if stop_time is None else stop_time
-    exported = _Exported(scenario, Path(build_dir), overrides, coupling or scenario.coupling)
+    for name, value in (("step", step), ("stop_time", stop_time)):
+        if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+            raise SimulationError(f"{name}: must be a positive finite number, got {value!r}")
+    if coupling is not None and coupling not in COUPLINGS:
+        raise SimulationError(f"coupling: {coupling!r} is not one of {COUPLINGS}")
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    exported = _Exported(scenario, Path(build_dir), overrides, coupling or scenario.coupling, fmi_version)
     if fmt == "osp":
         return _osp(exported, scenario, out_dir, step)
     path = out_dir / f"{scenario.name}.ssp"
     with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as package:
-        package.writestr("SystemStructure.ssd", _ssd(exported, scenario, step, stop_time))
-        for component in exported.system.components:
-            package.write(component.fmu, f"resources/{Path(component.fmu).name}")
+        package.writestr("SystemStructure.ssd", _ssd(exported, scenario, step, stop_time, system_outputs))
+        written = set()
+        for instance, (_, copy) in exported.copies().items():
+            if copy not in written:
+                written.add(copy)
+                exported.write_copy(instance, out_dir / f".{copy}.partial")
+                package.write(out_dir / f".{copy}.partial", f"resources/{copy}")
+                (out_dir / f".{copy}.partial").unlink()
     return path

@@ -265,6 +265,19 @@ class _RawCalls:
         return function
 
 
+def _instance(component: Component, log):
+    """An :class:`_Instance`, or for an FMI 3.0 FMU the adapter with its interface (fmus/fmi3/instance.py).
+
+    Both serve the fast path of :class:`_Stepper` (``prepare``, ``bind_outputs``, ``set_inputs``,
+    ``do_step``, ``refresh_outputs`` returning FMI statuses) and are extracted once per content.
+    """
+    from .fmi3.instance import Fmi3Instance, fmi_version_of
+    fmu = Path(component.fmu)
+    if fmu.is_file() and fmi_version_of(fmu) == 3:
+        return Fmi3Instance(component, _extracted(fmu), log)
+    return _Instance(component, log)
+
+
 class _Logger:
     """Collects FMU log messages; echoes warnings and errors to stderr."""
 
@@ -554,7 +567,7 @@ class Session:
         self._fresh = True
         try:
             for component in system.components:
-                self.instances[component.name] = _Instance(component, self.logger)
+                self.instances[component.name] = _instance(component, self.logger)
             _wire(self.instances, system.connections)
             for inst in self.instances.values():
                 inst.slave.instantiate(callbacks=self.logger.callbacks, loggingOn=True)

@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
-__all__ = ["time_to_stay_below", "settling_time"]
+__all__ = ["time_to_stay_below", "settling_time", "format_time", "NOT_REACHED"]
+
+NOT_REACHED = "not reached"  #: how a time that never came (``inf``) is written
 
 
 def time_to_stay_below(time: np.ndarray, error: np.ndarray, tolerance: float) -> float:
@@ -26,3 +30,8 @@ def settling_time(time: np.ndarray, signal: np.ndarray, band: float = 0.05) -> f
     if magnitude.ndim > 1:
         magnitude = magnitude.max(axis=1)
     return time_to_stay_below(time, magnitude, band * magnitude.max())
+
+
+def format_time(value: float, unit: str = "s", digits: int = 3) -> str:
+    """``1.234 s``; :data:`NOT_REACHED` for ``inf`` (a time that never came during the run)."""
+    return f"{value:.{digits}f} {unit}" if math.isfinite(value) else NOT_REACHED

@@ -32,34 +32,57 @@ does) overrides the mode for that step: the input follows its derivative.
 The parameters serve importers that cannot (libcosim, ECOS: ``obsfmu export``
 sets 1 for them).
 
-Errors never crash the host: a bad parameter set makes
-``exit_initialization_mode`` raise (fmi2Error through the native binary); a
-NaN/inf input or a failure inside the block is logged (status fmi2Error) and
-``do_step`` returns fmi2Discard with the state unchanged.
+Faults never crash the host and never corrupt the instance (``docs/faults.md`` has the table):
+
+* a call the slave cannot carry out without harm is *refused*: it raises :class:`Refused`
+  (fmi2Error through the native binary) before changing anything, so the instance stays exactly
+  as it was and in its FMI state -- a bad value reference or type, setting an output, a fixed
+  parameter after initialization, an interpolation mode other than 0, 1, 2, a parameter set
+  that does not define a valid block or gives non-finite (or huge) first outputs at
+  ``exit_initialization_mode`` (naming the parameters), outputs that cannot be computed, FMU
+  states of another FMU or version, damaged or forged bytes;
+* every step either succeeds with a finite state or changes nothing: NaN/inf/huge inputs and
+  input derivatives, a step longer than the block's sub-step budget, a failure inside the
+  block, or a new state or outputs that are not finite or beyond the block's
+  ``magnitude_bound`` -- the step is rolled back, one line naming the input or parameter at
+  fault is logged at Discard level and ``do_step`` returns False (fmi2Discard);
+* anything else -- an unexpected exception, a bug inside a block (logged at Error level, "a bug:
+  please report") -- is a *failure*: fmi2Error, and the binary puts the instance in the FMI error
+  state (fmi2SetFMUstate, fmi2Reset or fmi2FreeInstance go on);
+* FMU states are plain data (:mod:`observers.state`) in an explicit, versioned, checksummed
+  format (:mod:`fmus.state_format`), the binary's own fields (FMI version, state machine state)
+  included: the one serialized form of an FMU state.
 """
 
 from __future__ import annotations
 
-import copy
-import io
-import pickle
+import math
 from enum import IntEnum
+from functools import lru_cache
 from pathlib import Path
 from typing import ClassVar
-from xml.etree.ElementTree import Element, SubElement
+from xml.etree.ElementTree import Element, ParseError, SubElement, iterparse
 
 import numpy as np
-from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
+from pythonfmu import Boolean, Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real, String
 from pythonfmu.enums import Fmi2Status
 from pythonfmu.default_experiment import DefaultExperiment
 
-from observers.block import Block, Segment
-from observers.checks import ParameterError, finite_signal
+from observers.block import MAGNITUDE_BOUND, Block, Segment
+from observers.checks import ParameterError
+from observers.state import Leaves, StateError, capture, out_of_bounds, unchanged_skipped, within, within_bound
 
 from .definition import FmuDefinition, element_unit
 from .kinds import create_block
+from .state_format import StateFormatError, pack, unpack
 
-__all__ = ["BlockSlave", "InputMode", "CAPABILITIES"]
+__all__ = ["BlockSlave", "InputMode", "FmuState", "Refused", "CAPABILITIES"]
+
+
+class Refused(Exception):
+    """The slave refused an FMI call after checking it, and changed nothing (fmi2Error; the native
+    binary keeps the instance in its FMI state: the next legal call works).  Any other exception
+    of an FMI call is a failure (the binary's FMI error state)."""
 
 
 class InputMode(IntEnum):
@@ -70,7 +93,7 @@ class InputMode(IntEnum):
     INTERPOLATE = 2
 
 
-#: what the native binary (fmus/native/obsfmu_fmi2.c) and this class really support
+#: what the native binary (fmus/native) and this class really support
 CAPABILITIES = {
     "needsExecutionTool": "true",  # a Python interpreter with numpy and scipy
     "canHandleVariableCommunicationStepSize": "true",
@@ -87,18 +110,50 @@ CAPABILITIES = {
 _EXTRAPOLATE, _INTERPOLATE = int(InputMode.EXTRAPOLATE), int(InputMode.INTERPOLATE)
 
 
-class _StateUnpickler(pickle.Unpickler):
-    """Loads FMU states only: numpy arrays and the project's own classes, nothing else."""
+#: exceptions of a step that are faults of the data (fmi2Discard); anything else is a bug (fmi2Error)
+_NUMERICAL_FAULTS = (ValueError, ArithmeticError, np.linalg.LinAlgError)
 
-    _ALLOWED_ROOTS = ("numpy", "observers", "plants", "fmus")
-    _ALLOWED_BUILTINS = {"complex", "slice", "range", "set", "frozenset", "bytearray"}
 
-    def find_class(self, module, name):
-        root = module.split(".")[0]
-        if root in self._ALLOWED_ROOTS or (module == "builtins" and name in self._ALLOWED_BUILTINS) or (
-                module == "collections" and name in ("OrderedDict", "deque")):
-            return super().find_class(module, name)
-        raise pickle.UnpicklingError(f"FMU state may not contain {module}.{name}")
+class FmuState:
+    """An FMU state (``fmi2GetFMUstate``): plain data, tagged with the FMU it belongs to."""
+
+    __slots__ = ("identity", "tree")
+
+    def __init__(self, identity: str, tree: dict):
+        self.identity, self.tree = identity, tree
+
+
+#: the sections of an FMU state's tree (``loader``: the native binary's fields, see get_fmu_state)
+_SECTIONS = {"time", "params", "inputs", "modes", "derivatives", "last_inputs", "block_error", "block", "initialized",
+             "loader"}
+
+
+@lru_cache(maxsize=None)
+def _guid(model_description: str) -> str:
+    """The token of the FMU unpacked around ``resources``: its GUID (FMI 2.0) or instantiationToken
+    (FMI 3.0); "" when not run from an FMU."""
+    try:
+        for _, element in iterparse(model_description, events=("start",)):
+            return element.get("guid") or element.get("instantiationToken") or ""
+    except (OSError, ParseError):
+        pass
+    return ""
+
+
+def _verdict(value, bound: float) -> str:
+    """``"nan is not finite"``, ``"1e+308 exceeds the bound 1e+100"`` (the worst entry of an array)."""
+    where = ""
+    if isinstance(value, np.ndarray):
+        flat = value.ravel()
+        if flat.size > 1:
+            where = f" (entry {int(np.argmax(np.where(np.isfinite(flat), np.abs(flat), np.inf))) + 1} of {flat.size})"
+            value = flat[int(np.argmax(np.where(np.isfinite(flat), np.abs(flat), np.inf)))]
+        else:
+            value = flat[0] if flat.size else 0.0
+    value = complex(value) if np.iscomplexobj(value) else float(value)
+    if not np.isfinite(value):
+        return f"{value:g}{where} is not finite"
+    return f"{value:g}{where} exceeds the bound {bound:g} in magnitude"
 
 
 def interpolation_parameter(port: str) -> str:
@@ -111,6 +166,8 @@ class BlockSlave(Fmi2Slave):
     definition_file: ClassVar[str] = ""
     author = "obsfmu"
     license = "MIT"
+    #: the exception of refused calls, found here by the native binary's bridge
+    Refused: ClassVar[type] = Refused
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
@@ -130,9 +187,14 @@ class BlockSlave(Fmi2Slave):
         self._outputs_cache: dict[str, np.ndarray] | None = None
         self._time = 0.0
         self._stepping = False
+        self._bound = MAGNITUDE_BOUND                    # the block's magnitude_bound once it exists
+        self._feedthrough = True                         # the block's, once it exists
+        self._bad: dict[str, float] = {}                 # input (or der(input)) element -> refused value
+        self._snapshot: tuple[dict, Leaves] | None = None   # the block's state now, checked (rollback point)
         self._last_inputs: dict[str, tuple[np.ndarray, float]] = {}
         self._derivatives: dict[str, np.ndarray] = {}  # first input derivatives for the next step
-        self._input_elements: dict[int, tuple[str, int]] = {}  # value reference -> (port, index)
+        self._input_elements: dict[int, tuple[str, int, str]] = {}  # value reference -> (port, index, name)
+        self._element_names = {p.name: p.element_names for p in definition.inputs}
 
         for p in definition.parameters:
             self._register_array(p.element_names, self._params[p.name], Fmi2Causality.parameter,
@@ -142,8 +204,9 @@ class BlockSlave(Fmi2Slave):
                 self._register_mode(port.name)
         for port in definition.inputs:
             references = self._register_array(port.element_names, self._inputs[port.name], Fmi2Causality.input,
-                                              port.description, port.unit, on_set=self._inputs_changed)
-            self._input_elements.update({vr: (port.name, i) for i, vr in enumerate(references)})
+                                              port.description, port.unit, on_set=self._input_changed)
+            self._input_elements.update({vr: (port.name, i, name)
+                                         for i, (vr, name) in enumerate(zip(references, port.element_names))})
         for port in definition.outputs:
             self._register_outputs(port)
 
@@ -154,7 +217,7 @@ class BlockSlave(Fmi2Slave):
         for i, name in enumerate(names):
             def setter(value, i=i, name=name):
                 store[i] = value
-                on_set(name)
+                on_set(name, value)
             variable = Real(name, causality=causality, variability=variability, description=description,
                             getter=lambda i=i: float(store[i]), setter=setter)
             self.register_variable(variable)
@@ -167,11 +230,7 @@ class BlockSlave(Fmi2Slave):
         store = self._modes[port]
 
         def setter(value):
-            if int(value) not in InputMode._value2member_map_:
-                self.log(f"{interpolation_parameter(port)}: {value} is not 0 (hold), 1 (extrapolate) "
-                         f"or 2 (interpolate); keeping {int(store[0])}", Fmi2Status.error)
-                return
-            store[0] = int(value)
+            store[0] = int(value)          # set_integer checked the value first
 
         self.register_variable(Integer(
             interpolation_parameter(port), causality=Fmi2Causality.parameter,
@@ -189,17 +248,102 @@ class BlockSlave(Fmi2Slave):
             if element_unit(port.unit, i):
                 self._units[name] = element_unit(port.unit, i)
 
-    def _parameters_changed(self, name):
-        if self._stepping:
-            self.log(f"{name}: parameters are fixed after initialization; the new value is ignored "
-                     f"by the running block", Fmi2Status.warning)
-            return
+    def _parameters_changed(self, name, value):
         self._block = None
         self._block_error = None
         self._outputs_cache = None
+        self._snapshot = None
 
-    def _inputs_changed(self, name):
-        self._outputs_cache = None
+    def _input_changed(self, name, value):
+        self._flag(name, value)
+        if self._feedthrough:                  # other blocks' outputs do not depend on the inputs
+            self._outputs_cache = None
+
+    def _flag(self, name: str, value: float) -> None:
+        """Remember an input (or input derivative) element that a step must refuse."""
+        if -self._bound <= value <= self._bound:
+            self._bad.pop(name, None)
+        else:
+            self._bad[name] = value
+
+    def _variable(self, vr, kind):
+        """The variable of ``vr``, of type ``kind``; :class:`Refused` otherwise."""
+        variable = self.vars.get(vr)
+        if variable is None:
+            raise Refused(f"value reference {vr} does not exist")
+        if not isinstance(variable, kind):
+            raise Refused(f"{variable.name} (value reference {vr}) is not a {kind.__name__} variable")
+        return variable
+
+    def _check_writable(self, vrs, kind, values) -> None:
+        """Refuse a whole ``fmi2Set*`` call before any value is set (:class:`Refused`)."""
+        fixed = []
+        for vr, value in zip(vrs, values):
+            variable = self._variable(vr, kind)
+            if variable.setter is None or variable.causality == Fmi2Causality.output:
+                raise Refused(f"{variable.name} is an output; outputs cannot be set")
+            if variable.causality == Fmi2Causality.parameter:
+                if self._stepping:
+                    fixed.append(f"{variable.name} (in use: {variable.getter():g})")
+                elif kind is Integer and int(value) not in InputMode._value2member_map_:
+                    raise Refused(f"{variable.name}: {value} is not 0 (hold), 1 (extrapolate) or "
+                                  f"2 (interpolate); keeping {variable.getter()}")
+        if fixed:
+            raise Refused(f"{', '.join(fixed)}: parameters are fixed after initialization "
+                          f"(fmi2ExitInitializationMode) and keep their values; set them before, "
+                          f"or reset the instance")
+
+    def _read(self, read, kind, vrs) -> list:
+        """pythonfmu's getter ``read`` of ``vrs``; a value reference that does not exist or is not a
+        ``kind`` variable is refused (:class:`Refused`), any other exception is a bug."""
+        try:
+            return read(self, vrs)
+        except (KeyError, TypeError):
+            for vr in vrs:
+                self._variable(vr, kind)
+            raise
+
+    def set_real(self, vrs, values):
+        elements = self._input_elements
+        targets = [elements.get(vr) for vr in vrs]
+        if None in targets:
+            self._check_writable(vrs, Real, values)
+            super().set_real(vrs, values)
+            return
+        inputs, bound, bad = self._inputs, self._bound, self._bad   # the hot path: inputs, every step
+        for (port, index, name), value in zip(targets, values):
+            inputs[port][index] = value
+            if -bound <= value <= bound:
+                if bad:
+                    bad.pop(name, None)
+            else:
+                bad[name] = value
+        if self._feedthrough:                  # other blocks' outputs do not depend on the inputs
+            self._outputs_cache = None
+
+    def set_integer(self, vrs, values):
+        self._check_writable(vrs, Integer, values)
+        super().set_integer(vrs, values)
+
+    def set_boolean(self, vrs, values):
+        self._check_writable(vrs, Boolean, values)
+        super().set_boolean(vrs, values)
+
+    def set_string(self, vrs, values):
+        self._check_writable(vrs, String, values)
+        super().set_string(vrs, values)
+
+    def get_real(self, vrs):
+        return self._read(Fmi2Slave.get_real, Real, vrs)
+
+    def get_integer(self, vrs):
+        return self._read(Fmi2Slave.get_integer, Integer, vrs)
+
+    def get_boolean(self, vrs):
+        return self._read(Fmi2Slave.get_boolean, Boolean, vrs)
+
+    def get_string(self, vrs):
+        return self._read(Fmi2Slave.get_string, String, vrs)
 
     # ------------------------------------------------------------------ the block
     def _stateless(self) -> bool:
@@ -209,43 +353,125 @@ class BlockSlave(Fmi2Slave):
     def _parameter_arrays(self) -> dict[str, np.ndarray]:
         return {p.name: p.array(self._params[p.name]) for p in self.definition.parameters}
 
+    def _parameter_fault(self, params: dict[str, np.ndarray]) -> str | None:
+        """NaN, inf or huge parameter values, named (before anything is built from them)."""
+        bad = [f"{name} = {value:g}" for p in self.definition.parameters
+               for name, value in zip(p.element_names, params[p.name]) if not abs(value) <= MAGNITUDE_BOUND]
+        if bad:
+            more = f" (and {len(bad) - 5} more)" if len(bad) > 5 else ""
+            return (f"{', '.join(bad[:5])}{more}: parameters must be finite and at most "
+                    f"{MAGNITUDE_BOUND:g} in magnitude")
+        return None
+
+    def _new_block(self, params: dict[str, np.ndarray]) -> Block:
+        """The block of the parameter store ``params``; raises naming the parameter at fault."""
+        fault = self._parameter_fault(params)
+        if fault:
+            raise ParameterError(fault)
+        block = create_block(self.definition.kind, {p.name: p.array(params[p.name]) for p in self.definition.parameters},
+                             self.definition.options, self.definition.kind_module)
+        if block.feedthrough and not self.definition.feedthrough:
+            raise ParameterError("D: the parameters give a direct feedthrough but the FMU was "
+                                 "built without one; rebuild it with that D")
+        return block
+
     def _try_block(self) -> Block | None:
+        """The block of the parameters, built once; None (the reason in ``_block_error``) if they define none."""
         if self._block is None and self._block_error is None:
             try:
-                block = create_block(self.definition.kind, self._parameter_arrays(), self.definition.options,
-                                     self.definition.kind_module)
-                if block.feedthrough and not self.definition.feedthrough:
-                    raise ParameterError("D: the parameters give a direct feedthrough but the FMU was "
-                                         "built without one; rebuild it with that D")
-                self._block = block
-            except Exception as exc:  # a bad parameter set must not crash the host
+                self._use_block(self._new_block(self._params))
+            except Exception as exc:  # a bad parameter set must not crash the host; callers report it
                 self._block_error = f"{type(exc).__name__}: {exc}"
-                self.log(f"cannot build the block from the parameters: {self._block_error}",
-                         Fmi2Status.error)
         return self._block
+
+    def _use_block(self, block: Block | None) -> None:
+        self._block, self._snapshot, self._outputs_cache = block, None, None
+        self._bound = MAGNITUDE_BOUND if block is None else block.magnitude_bound
+        self._feedthrough = block is None or block.feedthrough
+        self._bad = {}
+        for port, names in self._element_names.items():
+            for name, value in zip(names, self._inputs[port]):
+                self._flag(name, value)
+            for name, value in zip(names, self._derivatives.get(port, ())):
+                self._flag(f"der({name})", value)
 
     def _output(self, port: str, index: int) -> float:
         if self._outputs_cache is None:
             block = self._try_block()
             if block is None:
-                return float("nan")
+                raise Refused(f"output {port} cannot be computed: the parameters do not define a valid block: "
+                              f"{self._block_error}")
             try:
                 self._outputs_cache = block.outputs(self._time, self._inputs)
-            except Exception as exc:
-                self.log(f"output {port} at t={self._time:g}: {type(exc).__name__}: {exc}",
-                         Fmi2Status.error)
-                return float("nan")
+            except _NUMERICAL_FAULTS as exc:       # anything else is a bug: a failure
+                raise Refused(f"output {port} at t={self._time:g} cannot be computed: "
+                              f"{type(exc).__name__}: {exc}") from None
         return float(self._outputs_cache[port][index])
+
+    def _output_fault(self, outputs: dict[str, np.ndarray], bound: float) -> str | None:
+        """The first output element that is not finite or beyond ``bound``."""
+        for port, values in outputs.items():
+            values = np.asarray(values, dtype=float)
+            if not within(values, bound):
+                names = next(p.element_names for p in self.definition.outputs if p.name == port)
+                i = int(np.argmax(np.where(np.isfinite(values), np.abs(values), np.inf)))
+                return f"output {names[i]} = {_verdict(values[i], bound)}"
+        return None
+
+    @staticmethod
+    def _state_fault(tree: dict, leaves: Leaves, previous: Leaves | None, bound: float) -> str | None:
+        """The first state value that is not finite or beyond ``bound`` (arrays of ``previous`` skipped)."""
+        if within_bound(leaves, bound, previous):
+            return None
+        path, value = out_of_bounds(tree, bound) or ("state", float("nan"))
+        return f"state {path} = {_verdict(value, bound)}"
+
+    def _suspects(self) -> str:
+        """Inputs and the parameters changed from their start values: what to look at."""
+        inputs = [f"{name} = {value:g}" for port, names in self._element_names.items()
+                  for name, value in zip(names, self._inputs[port])]
+        inputs += [f"der({name}) = {value:g}" for port, derivative in self._derivatives.items()
+                   for name, value in zip(self._element_names[port], derivative)]
+        changed = [f"{name} = {value:g}" for p in self.definition.parameters
+                   for name, value, start in zip(p.element_names, self._params[p.name], p.value) if value != start]
+        text = f"inputs {', '.join(inputs[:6])}{' ...' if len(inputs) > 6 else ''}; " if inputs else ""
+        if changed:
+            return text + f"parameters changed from their start values: {', '.join(changed[:6])}" + \
+                (" ..." if len(changed) > 6 else "")
+        return text + "all parameters at their start values"
 
     # ------------------------------------------------------------------ FMI calls
     def setup_experiment(self, start_time, stop_time=None, tolerance=None):
+        if not math.isfinite(start_time):
+            raise Refused(f"start time {start_time} is not finite")
         self._time = float(start_time)
 
     def exit_initialization_mode(self):
+        """Start stepping with the block of the parameters; :class:`Refused` (naming the parameters,
+        nothing changed: still in initialization mode) when they define no valid block or its first
+        outputs are not finite or beyond its ``magnitude_bound``."""
+        block = self._block
+        if block is None:
+            try:
+                block = self._new_block(self._params)
+            except Exception as exc:  # nothing changed: a refusal, whatever the block raised
+                raise Refused(f"the parameters do not define a valid block: {type(exc).__name__}: {exc}") from None
+        bound, outputs = block.magnitude_bound, None
+        if all(within(value, bound) for value in self._inputs.values()):  # else the first step names them
+            try:
+                outputs = block.outputs(self._time, self._inputs)
+                fault = self._output_fault(outputs, bound)
+            except _NUMERICAL_FAULTS as exc:
+                fault = f"computing them raised {type(exc).__name__}: {exc}"
+            if fault:
+                raise Refused(f"the first outputs are not usable: {fault} ({self._suspects()})")
+        # nothing can fail from here on
+        if block is not self._block:
+            self._use_block(block)
         self._remember_inputs(self._time)
         self._stepping = True
-        if self._try_block() is None:
-            raise ParameterError(f"the parameters do not define a valid block: {self._block_error}")
+        if outputs is not None:
+            self._outputs_cache = outputs
 
     @property
     def last_successful_time(self) -> float:
@@ -257,29 +483,47 @@ class BlockSlave(Fmi2Slave):
         They override the port's ``<port>_interpolation`` mode for that step
         only: ``u(t + s) = u(t) + s du``; after the step the input holds
         ``u(t) + h du`` (what direct-feedthrough outputs at ``t + h`` see).
-        Higher orders are ignored with a warning.
+        Higher orders are ignored with a warning.  NaN, inf and huge values make the next
+        step refuse (like inputs).
         """
+        elements, derivatives = self._input_elements, self._derivatives
+        unknown = [vr for vr in vrs if vr not in elements]
+        if unknown:
+            raise Refused(f"value reference {unknown[0]} is not a real input")
         for vr, order, value in zip(vrs, orders, values):
-            if vr not in self._input_elements:
-                raise ValueError(f"value reference {vr} is not a real input")
             if order != 1:
                 self.log(f"input derivative of order {order} ignored (only order 1 is used)", Fmi2Status.warning)
                 continue
-            port, index = self._input_elements[vr]
-            self._derivatives.setdefault(port, np.zeros_like(self._inputs[port]))[index] = value
+            port, index, name = elements[vr]
+            if port not in derivatives:
+                derivatives[port] = np.zeros_like(self._inputs[port])
+            derivatives[port][index] = value
+            if not -self._bound <= value <= self._bound or self._bad:
+                self._flag(f"der({name})", value)
 
-    def _remember_inputs(self, time: float, step: float = 0.0):
+    def clear_input_derivatives(self, vrs) -> None:
+        """Forget the input derivatives of the ports of ``vrs`` (the FMI 3.0 binary: the slopes it gave a
+        step from the intermediate update belong to that step; a discarded step gives them back)."""
+        for vr in vrs:
+            port, _, _ = self._input_elements[vr]
+            if self._derivatives.pop(port, None) is not None:
+                for name in self._element_names[port]:
+                    self._bad.pop(f"der({name})", None)
+
+    def _remember_inputs(self, time: float, step: float = 0.0, ends: dict[str, np.ndarray] | None = None):
         """Record each input with the time it belongs to, after a step of length ``step``.
 
         An input with a derivative for the step followed it to ``time + step``;
         an interpolated input was set as its value at ``time + step``.
         """
         for port, value in self._inputs.items():
-            if port in self._derivatives:
-                value += step * self._derivatives[port]
+            if ends and port in ends:
+                value[:] = ends[port]
             at_end = port in self._derivatives or self._modes[port][0] == _INTERPOLATE
             self._last_inputs[port] = (value.copy(), time + step if at_end else time)
         self._derivatives.clear()
+        if self._bad:
+            self._bad = {name: value for name, value in self._bad.items() if not name.startswith("der(")}
 
     def _segment(self, port: str, t: float, h: float) -> Segment:
         value = self._inputs[port]
@@ -293,64 +537,251 @@ class BlockSlave(Fmi2Slave):
             return Segment(value.copy(), (value - previous) / (t - previous_time))
         return Segment.hold(value.copy())
 
+    def _refuse(self, t: float, h: float, reason: str, status=Fmi2Status.discard) -> bool:
+        self.log(f"do_step(t={t:g}, h={h:g}) refused, state unchanged: {reason}", status)
+        return False
+
     def do_step(self, current_time, step_size):
+        t, h, block = current_time, step_size, self._block
+        if block is None or self._bad or not (0.0 < h < math.inf and math.isfinite(t)):
+            return self._refuse_before(t, h)
+        inputs = self._inputs
+        ends = {port: inputs[port] + h * slope for port, slope in self._derivatives.items()}
+        at_end = {**inputs, **ends} if ends else inputs
+        before = None if block.stateless else self._snapshot   # the state now, checked (or None)
+        checked = None if before is None else before[1]
+        if before is None and not block.stateless:
+            before = (capture(block), None)
+        tree = leaves = outputs = None
         try:
-            block = self._try_block()
-            if block is None:
-                raise RuntimeError(self._block_error)
-            for port, value in self._inputs.items():
-                finite_signal(f"input {port}", value)
-            segments = {port: self._segment(port, current_time, step_size) for port in self._inputs}
-            block.advance(current_time, step_size, segments)
-        except Exception as exc:
-            self.log(f"do_step(t={current_time:g}, h={step_size:g}) refused: {type(exc).__name__}: {exc}",
-                     Fmi2Status.error)
-            return False
-        self._remember_inputs(current_time, step_size)
-        self._time = current_time + step_size
-        self._outputs_cache = None
+            if before is not None:
+                block.advance(t, h, {port: self._segment(port, t, h) for port in inputs})
+                leaves = Leaves()
+                tree = capture(block, leaves)
+            outputs = block.outputs(t + h, at_end)
+            fault = None if self._all_within(leaves, checked, ends, outputs) else \
+                self._fault(tree, leaves, checked, ends, outputs, None)
+        except BaseException as exc:            # KeyboardInterrupt too: roll back, then let it through
+            if before is not None:
+                block.set_state(before[0], check=False)
+            if not isinstance(exc, Exception):
+                raise
+            if isinstance(exc, _NUMERICAL_FAULTS) and not isinstance(exc, StateError):
+                return self._refuse(t, h, self._fault(tree, leaves, checked, ends, outputs, exc))
+            return self._refuse(t, h, f"{type(exc).__name__}: {exc} (a bug: please report)", Fmi2Status.error)
+        if fault:
+            if before is not None:
+                block.set_state(before[0], check=False)
+            return self._refuse(t, h, fault)
+        self._remember_inputs(t, h, ends)
+        self._time = t + h
+        self._snapshot = None if tree is None else (tree, leaves)
+        self._outputs_cache = outputs
         return True
 
+    def _refuse_before(self, t: float, h: float) -> bool:
+        """A step refused before anything is computed: no block, a bad step size, a bad input."""
+        if self._try_block() is None:
+            return self._refuse(t, h, f"the parameters do not define a valid block: {self._block_error}",
+                                Fmi2Status.error)
+        if not (0.0 < h < math.inf and math.isfinite(t)):
+            return self._refuse(t, h, "the step size must be positive and finite and the time finite",
+                                Fmi2Status.error)
+        if self._bad:
+            name, value = next(iter(self._bad.items()))
+            kind = "input derivative" if name.startswith("der(") else "input"
+            return self._refuse(t, h, f"{kind} {name} = {_verdict(value, self._bound)}")
+        return self.do_step(t, h)                 # the block was built just now
+
+    def _all_within(self, leaves: Leaves | None, checked: Leaves | None, ends: dict, outputs: dict) -> bool:
+        """One cheap test of everything a step produced -- the state it rebound, the inputs at its
+        end, the outputs: the sum of their squares (inf or NaN if any entry is) within the bound;
+        entry by entry only if not."""
+        total, arrays = 0.0, list(ends.values())
+        arrays.extend(outputs.values())
+        if leaves is not None:
+            arrays.extend(unchanged_skipped(leaves, checked))
+            for value in leaves.floats:
+                total += value * value
+        for array in arrays:
+            total += array.dot(array) if array.ndim == 1 and array.dtype.kind == "f" else \
+                np.vdot(array, array).real
+        return total <= self._bound * self._bound or \
+            all(within(np.ravel(array), self._bound) for array in arrays) and \
+            all(-self._bound <= value <= self._bound for value in (leaves.floats if leaves else ()))
+
+    def _fault(self, tree, leaves, checked, ends, outputs, error) -> str:
+        """What :meth:`_all_within` (or ``error``, raised by the step) found wrong, in words."""
+        for port, end in ends.items():
+            if not within(end, self._bound):
+                return f"input {port} at the step end (value + h * derivative) = {_verdict(end, self._bound)}"
+        if tree is not None:
+            fault = self._state_fault(tree, leaves, checked, self._bound)
+            if fault:
+                return f"after the step {fault} ({self._suspects()})"
+        if error is not None:
+            return f"{type(error).__name__}: {error}"
+        fault = self._output_fault(outputs, self._bound) or "a value out of bounds"
+        return f"after the step {fault} ({self._suspects()})"
+
     # ------------------------------------------------------------------ FMU state
-    def get_fmu_state(self) -> dict:
-        """A deep copy of everything that evolves: parameters, inputs, block state, history."""
-        return copy.deepcopy({
-            "params": self._params, "inputs": self._inputs, "modes": self._modes,
-            "derivatives": self._derivatives, "last_inputs": self._last_inputs, "time": self._time,
-            "stepping": self._stepping, "block_error": self._block_error,
-            "block": None if self._block is None else self._block.get_state(),
+    @property
+    def identity(self) -> str:
+        """``"<model name> <GUID or instantiationToken>"``: the FMU a state belongs to."""
+        guid = _guid(str(Path(self.resources).parent / "modelDescription.xml"))
+        return f"{self.definition.model_name} {guid}"
+
+    def _own(self, state) -> FmuState:
+        """``state`` if it is a state of this FMU; :class:`Refused` otherwise."""
+        if not isinstance(state, FmuState):
+            raise Refused(f"not an FMU state of {self.definition.model_name} (a {type(state).__name__})")
+        if state.identity != self.identity:
+            raise Refused(f"this state belongs to another FMU ({state.identity!r}), not to {self.identity!r}")
+        return state
+
+    def get_fmu_state(self, loader: dict | None = None) -> FmuState:
+        """Everything that evolves, as plain data: time, parameters, inputs, block state, history,
+        whether initialization is over, and ``loader``: the native binary's own fields (its FMI
+        version and state machine state, ``{"fmi": 2, "state": "stepComplete"}``), kept in the state
+        and its bytes for the binary (:meth:`loader_fields`); None without the binary."""
+        block = None
+        if self._block is not None:
+            if self._snapshot is None:
+                leaves = Leaves()
+                self._snapshot = (capture(self._block, leaves), leaves)
+            block = self._snapshot[0]
+        return FmuState(self.identity, {
+            "time": self._time,
+            "params": {name: value.copy() for name, value in self._params.items()},
+            "inputs": {name: value.copy() for name, value in self._inputs.items()},
+            "modes": {name: value.astype(np.int64) for name, value in self._modes.items()},
+            "derivatives": {name: value.copy() for name, value in self._derivatives.items()},
+            "last_inputs": {name: (value, at) for name, (value, at) in self._last_inputs.items()},
+            "block_error": self._block_error,
+            "block": block,
+            "initialized": self._stepping,
+            "loader": None if loader is None else dict(loader),
         })
 
-    def set_fmu_state(self, state: dict) -> None:
-        state = copy.deepcopy(state)
-        for name in ("params", "inputs", "modes"):  # the variable getters hold these arrays: copy into them
-            for key, values in state[name].items():
+    def loader_fields(self, state) -> tuple[dict | None, float, bool]:
+        """The native binary's fields of a state of this FMU, with its time and whether it was saved
+        after initialization (the binary validates them against its state machine)."""
+        tree = self._own(state).tree
+        return tree["loader"], tree["time"], tree["initialized"]
+
+    def set_fmu_state(self, state) -> None:
+        """Restore a state of this FMU; anything else is refused (:class:`Refused`) and changes nothing."""
+        tree = self._own(state).tree
+        try:
+            self._check_tree(tree)
+            block = snapshot = outputs = None
+            if tree["block"] is not None:
+                block, snapshot, outputs = self._restored_block(tree)
+        except StateError as exc:
+            raise Refused(str(exc)) from None
+        # nothing can fail from here on
+        for name in ("params", "inputs", "modes"):          # the variable getters hold these arrays
+            for key, values in tree[name].items():
                 getattr(self, f"_{name}")[key][:] = values
-        self._derivatives = state["derivatives"]
-        self._last_inputs = state["last_inputs"]
-        self._time = state["time"]
-        self._stepping = state["stepping"]
-        self._block_error = state["block_error"]
-        self._block = None
-        if state["block"] is not None:
-            self._block_error = None
-            self._try_block().set_state(state["block"])
-        self._outputs_cache = None
+        self._derivatives = {name: np.array(value, dtype=float) for name, value in tree["derivatives"].items()}
+        self._last_inputs = {name: (np.array(value, dtype=float), float(at))
+                             for name, (value, at) in tree["last_inputs"].items()}
+        self._time = tree["time"]
+        self._stepping = tree["initialized"]
+        self._use_block(block)
+        self._block_error = tree["block_error"] if block is None else None
+        self._snapshot, self._outputs_cache = snapshot, outputs
 
-    @staticmethod
-    def serialize_fmu_state(state: dict) -> bytes:
-        return pickle.dumps(state, protocol=pickle.HIGHEST_PROTOCOL)
+    def _restored_block(self, tree: dict) -> tuple[Block, tuple[dict, Leaves], dict | None]:
+        """The block with the saved state, its snapshot and outputs, all checked; the live block is
+        changed only if all is well.  The outputs are None (computed when read) when the saved inputs
+        are not usable: a state saved after a bad input was set is a state like any other."""
+        live = self._block
+        same = live is not None and all(np.array_equal(tree["params"][name], value)
+                                        for name, value in self._params.items())
+        if same:
+            block, rollback = live, (self._snapshot[0] if self._snapshot else capture(live))
+        else:
+            try:
+                block, rollback = self._new_block(tree["params"]), None
+            except Exception as exc:
+                raise StateError(f"the parameters of the state do not define a valid block: "
+                                 f"{type(exc).__name__}: {exc}") from None
+        block.set_state(tree["block"])                         # checked: raises before any change
+        try:
+            leaves, bound = Leaves(), block.magnitude_bound
+            snapshot = (capture(block, leaves), leaves)
+            fault = self._state_fault(*snapshot, None, bound)
+            outputs = None                 # inputs that are not usable: the next step refuses, naming them
+            if all(within(value, bound) for value in tree["inputs"].values()):
+                outputs = block.outputs(tree["time"], tree["inputs"])
+                fault = fault or self._output_fault(outputs, bound)
+            if fault:
+                raise StateError(f"the state is not usable: {fault}")
+        except Exception as exc:
+            if rollback is not None:
+                block.set_state(rollback, check=False)
+            if isinstance(exc, StateError):
+                raise
+            raise StateError(f"the state is not usable: {type(exc).__name__}: {exc}") from None
+        return block, snapshot, outputs
 
-    @staticmethod
-    def deserialize_fmu_state(data: bytes) -> dict:
-        """Unpickle a state made by :meth:`serialize_fmu_state`; only project and numpy types load."""
-        return _StateUnpickler(io.BytesIO(data)).load()
+    def _check_tree(self, tree) -> None:
+        """The slave's part of a state must have exactly this FMU's variables and shapes."""
+        def require(condition, what):
+            if not condition:
+                raise StateError(f"not a state of {self.definition.model_name}: {what}")
+
+        require(type(tree) is dict and set(tree) == _SECTIONS, "wrong sections")
+        require(type(tree["time"]) is float and math.isfinite(tree["time"]), "time")
+        for section, store, dtype in (("params", self._params, np.float64), ("inputs", self._inputs, np.float64),
+                                      ("modes", self._modes, np.int64)):
+            values = tree[section]
+            require(type(values) is dict and set(values) == set(store), f"{section}: wrong names")
+            for name, value in values.items():
+                require(type(value) is np.ndarray and value.dtype == dtype and value.shape == store[name].shape,
+                        f"{section} {name}: wrong type or shape")
+        require(all(int(m[0]) in InputMode._value2member_map_ for m in tree["modes"].values()), "modes: values")
+        for section in ("derivatives", "last_inputs"):
+            require(type(tree[section]) is dict and set(tree[section]) <= set(self._inputs), f"{section}: names")
+        for name, value in tree["derivatives"].items():
+            require(type(value) is np.ndarray and value.dtype == np.float64 and value.shape == self._inputs[name].shape,
+                    f"derivatives {name}")
+        for name, entry in tree["last_inputs"].items():
+            require(type(entry) in (tuple, list) and len(entry) == 2 and type(entry[0]) is np.ndarray
+                    and entry[0].dtype == np.float64 and entry[0].shape == self._inputs[name].shape
+                    and type(entry[1]) is float and math.isfinite(entry[1]), f"last_inputs {name}")
+        require(tree["block_error"] is None or type(tree["block_error"]) is str, "block_error")
+        require(tree["block"] is None or type(tree["block"]) is dict, "block")
+        require(type(tree["initialized"]) is bool, "initialized")
+        require(not tree["initialized"] or (tree["block"] is not None and tree["block_error"] is None),
+                "initialized without a block")
+        loader = tree["loader"]
+        require(loader is None or (type(loader) is dict and set(loader) == {"fmi", "state"}
+                                   and type(loader["fmi"]) is int and type(loader["state"]) is str
+                                   and len(loader["state"]) < 32), "loader")
+
+    def serialize_fmu_state(self, state) -> bytes:
+        """The bytes of ``state`` (:mod:`fmus.state_format`): the one serialized form of an FMU state."""
+        state = self._own(state)
+        return pack(state.identity, state.tree)
+
+    def deserialize_fmu_state(self, data: bytes) -> FmuState:
+        """An FMU state from bytes of :meth:`serialize_fmu_state`; anything else is refused
+        (:class:`Refused`: format, version, identity, checksum, then every section checked)."""
+        try:
+            tree = unpack(data, self.identity)
+            self._check_tree(tree)
+        except (StateFormatError, StateError) as exc:
+            raise Refused(str(exc)) from None
+        return FmuState(self.identity, tree)
 
     # ------------------------------------------------------------------ modelDescription
     def to_xml(self, model_options=None) -> Element:
         """pythonfmu's description plus units, mode ranges and a complete ModelStructure."""
         root = super().to_xml(model_options or {})
-        root.find("CoSimulation").attrib.update(CAPABILITIES)
+        root.find("CoSimulation").attrib.update(CAPABILITIES, canHandleVariableCommunicationStepSize=str(
+            self.definition.variable_step).lower())
         self._add_units(root)
         for variable in root.iter("ScalarVariable"):
             if variable.get("name", "").endswith("_interpolation"):

@@ -10,21 +10,33 @@ is plain Python/numpy, usable without FMI; the FMU adapter in
 * ``advance(t, h, inputs)`` moves the state from ``t`` to ``t + h``.  Each
   input is a :class:`Segment`: the value at ``t`` plus a slope, so a block
   can integrate a linearly interpolated input exactly instead of holding it.
-* ``get_state()`` / ``set_state()`` copy the complete state (for FMU state
-  save/restore); the default copies every attribute.
+* ``get_state()`` / ``set_state()`` save and restore the complete state as plain data
+  (:mod:`observers.state`: FMU state save/restore, rollback of a refused step).  A block
+  does not write them; it declares what is *not* state in ``not_state`` (built from the
+  parameters, never changed by ``advance``: models, user functions, propagators) and the
+  attributes that may be ``None`` in ``state_optional``.
+
+Rule every block follows: ``advance`` computes the new state completely and then *rebinds*
+its attributes (``self.x = x_next``); it never writes into a state array (``self.x[0] = ...``,
+``self.x += ...``).  A saved state then shares the arrays instead of copying them, and the
+FMU layer rolls a refused step back at the cost of one walk over the attributes.
 
 Inputs and outputs are named ports; their sizes are fixed at construction.
 """
 
 from __future__ import annotations
 
-import copy
 from dataclasses import dataclass
 from typing import Any, ClassVar, Mapping
 
 import numpy as np
 
-__all__ = ["Segment", "Block"]
+from .state import capture, restore
+
+__all__ = ["Segment", "Block", "MAGNITUDE_BOUND"]
+
+#: default bound on the magnitude of inputs, outputs, state and parameters inside an FMU
+MAGNITUDE_BOUND = 1e100
 
 
 @dataclass(frozen=True)
@@ -59,6 +71,13 @@ class Block:
     feedthrough: ClassVar[bool] = False
     #: True when the block has no state (``advance`` does nothing)
     stateless: ClassVar[bool] = False
+    #: bound on the magnitude of every input, output and state value (Euclidean norm of a port
+    #: or state array); the FMU layer refuses steps that would leave it
+    magnitude_bound: ClassVar[float] = MAGNITUDE_BOUND
+    #: attributes that are not state (see module docstring); merged along the class hierarchy
+    not_state: ClassVar[tuple[str, ...]] = ("input_sizes", "output_sizes", "feedthrough")
+    #: attributes that may be None: name -> None (plain data) or a method giving a blank object
+    state_optional: ClassVar[dict[str, str | None]] = {}
 
     def outputs(self, t: float, inputs: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
         raise NotImplementedError
@@ -67,7 +86,10 @@ class Block:
         raise NotImplementedError
 
     def get_state(self) -> dict[str, Any]:
-        return copy.deepcopy(vars(self))
+        """The complete state as plain data (arrays shared with the block, see module docstring)."""
+        return capture(self)
 
-    def set_state(self, state: Mapping[str, Any]) -> None:
-        vars(self).update(copy.deepcopy(dict(state)))
+    def set_state(self, state: Mapping[str, Any], check: bool = True) -> None:
+        """Restore a state of :meth:`get_state`; with ``check`` a state that does not fit this block
+        raises :class:`~observers.state.StateError` and changes nothing."""
+        restore(self, state, check)

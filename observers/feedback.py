@@ -21,6 +21,7 @@ class StateFeedback(Block):
 
     feedthrough = True
     stateless = True
+    not_state = ("K",)
 
     def __init__(self, K):
         self.K = as_matrix("K", K)

@@ -14,15 +14,60 @@ of a co-simulation must not depend on the master taking tiny steps).
   the step is ``x(t0 + h) = Phi x + G0 u0 + G1 du`` (Van Loan's method).
 * :func:`rk4_step` -- classical Runge-Kutta 4 with equal sub-steps, for
   time-varying or nonlinear dynamics.
+* :func:`substep_count` -- how many sub-steps a communication step needs, within the block's
+  work budget: every block that sub-steps or iterates calls it *before* doing any work, so
+  that no call takes unbounded time (a step of 1e6 s is refused at once, not computed).
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 import numpy as np
 
-__all__ = ["LinearPropagator", "rk4_step", "expm"]
+from .checks import ParameterError, SignalError
+
+__all__ = ["LinearPropagator", "rk4_step", "expm", "substep_count", "require_budget", "BudgetError",
+           "DEFAULT_SUBSTEP_BUDGET"]
+
+#: default of every block's ``substep_budget``: sub-steps one communication step may take
+DEFAULT_SUBSTEP_BUDGET = 10_000
+
+
+class BudgetError(SignalError):
+    """A step would need more sub-steps than the block's budget; refused before any work."""
+
+
+def require_budget(value) -> int:
+    """``value`` as a sub-step budget (an integer >= 1); :class:`ParameterError` otherwise."""
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(f"substep_budget: expected an integer >= 1, got {value!r}") from None
+    if not (number >= 1 and number == int(number) and number <= 1e12):
+        raise ParameterError(f"substep_budget: expected an integer >= 1 (at most 1e12), got {number:g}")
+    return int(number)
+
+
+def substep_count(h: float, max_substep: float = math.inf, rate: float = 0.0, max_change: float = math.inf,
+                  budget: int = DEFAULT_SUBSTEP_BUDGET) -> int:
+    """Number of equal sub-steps of a step ``h``: each at most ``max_substep`` long, and a signal
+    changing at ``rate`` changes by at most ``max_change`` on each.
+
+    Raises :class:`BudgetError` (naming ``substep_budget``) when more than ``budget`` are needed;
+    call it before any work so that a refused step costs nothing.
+    """
+    by_length = h / max_substep
+    by_change = abs(rate) * h / max_change if rate else 0.0
+    limit = budget * (1.0 + 1e-9)
+    if not (by_length <= limit and by_change <= limit):   # also NaN and inf
+        needed = by_length if not by_change > by_length else by_change
+        why = f"sub-steps of at most max_substep = {max_substep:g}" if by_length >= by_change else \
+            f"sub-steps over which the signal (changing at {abs(rate):.3g}/s) moves by at most {max_change:g}"
+        raise BudgetError(f"substep_budget: the step h = {h:g} needs {needed:.3g} {why}, more than "
+                          f"substep_budget = {budget}; take a shorter step or raise substep_budget")
+    return max(1, math.ceil(by_length - 1e-9), math.ceil(by_change - 1e-9))
 
 
 def expm(M: np.ndarray) -> np.ndarray:

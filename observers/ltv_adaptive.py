@@ -62,7 +62,8 @@ from .block import Block, Segment
 from .checks import ParameterError, as_vector, finite_signal, require_positive
 from .estimation import LeastSquaresForgetting
 from .estimation.exponential import phi1
-from .ltv_stepping import PolynomialInputs, output_function, rk4_linear, substep_count, time_function
+from .integrators import DEFAULT_SUBSTEP_BUDGET, require_budget, substep_count
+from .ltv_stepping import PolynomialInputs, output_function, rk4_linear, time_function
 
 __all__ = ["LTVAdaptiveObserver"]
 
@@ -101,6 +102,8 @@ class LTVAdaptiveObserver(Block):
         Degree of the polynomials through the last communication points that ``y`` and ``u``
         follow inside a step when the master interpolates
         (:class:`~observers.ltv_stepping.PolynomialInputs`; 2: parabolas).
+    substep_budget : int
+        Most RK4 sub-steps one communication step may take (a longer step is refused).
 
     Notes
     -----
@@ -109,8 +112,12 @@ class LTVAdaptiveObserver(Block):
     ``F_max``, the largest eigenvalue of the gain ``F`` (bounded by ``M``; watch it under noise).
     """
 
+    not_state = ("A", "L", "f", "C", "n", "max_substep", "max_dy", "substep_budget", "_forcing")
+    state_optional = {"_memo_key": None, "_memo": None}
+
     def __init__(self, A, C, L, f, gamma=1000.0, beta=1.0, f0=0.1, M=1e12, x_hat0=None, k_hat0=None,
-                 b_hat0=None, m_hat0=None, max_substep=1e-3, max_dy=0.2, input_degree=2):
+                 b_hat0=None, m_hat0=None, max_substep=1e-3, max_dy=0.2, input_degree=2,
+                 substep_budget=DEFAULT_SUBSTEP_BUDGET):
         self.C = as_vector("C", C)
         if not np.any(self.C):
             raise ParameterError("C: the output vector is zero; y = C^T x would measure nothing")
@@ -121,6 +128,7 @@ class LTVAdaptiveObserver(Block):
         _require_stable_A0(self.A, self.L, self.C)
         self.max_substep = require_positive("max_substep", max_substep)
         self.max_dy = require_positive("max_dy", max_dy)
+        self.substep_budget = require_budget(substep_budget)
         initial = [np.zeros(n) if v is None else as_vector(name, v, n)
                    for name, v in (("x_hat0", x_hat0), ("k_hat0", k_hat0), ("b_hat0", b_hat0),
                                    ("m_hat0", m_hat0))]
@@ -166,19 +174,10 @@ class LTVAdaptiveObserver(Block):
                 "b_hat": theta[2 * n:3 * n], "m_hat": theta[3 * n:], "x0_hat": -theta[:n],
                 "F_max": np.array([F_max])}
 
-    def get_state(self) -> dict:
-        """What evolves (filters, estimator, input history) -- not the user's functions, which an
-        FMU state must not pickle."""
-        return copy.deepcopy({"S": self.S, "estimator": self.estimator, "inputs": self.inputs})
-
-    def set_state(self, state) -> None:
-        state = copy.deepcopy(dict(state))
-        self.S, self.estimator, self.inputs = state["S"], state["estimator"], state["inputs"]
-
     def advance(self, t: float, h: float, inputs: Mapping[str, Segment]) -> None:
         polynomials, history = self.inputs.step(t, h, inputs)
         y, u = polynomials["y"], polynomials["u"]
-        count = substep_count(h, self.max_substep, y.max_rate(), self.max_dy)
+        count = substep_count(h, self.max_substep, y.max_rate(), self.max_dy, self.substep_budget)
         dt = h / count
         start = self._memo if self._continues(t, y.start, u.start) else self._evaluate(t, y.start, u.start)
         S, at_nodes = self.S, []

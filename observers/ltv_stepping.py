@@ -4,7 +4,6 @@ r"""Stepping helpers shared by the LTV plant and observer of paper 001.
   ``f(y)`` once, naming the parameter.
 * :class:`PolynomialInputs` -- the inputs inside a communication step as the polynomial through
   the last ``degree + 1`` communication points (order ``degree + 1``) instead of the chord.
-* :func:`substep_count` -- RK4 sub-steps needed inside a step.
 * :func:`rk4_linear` -- RK4 for ``S' = A0(t) S + G(t)`` with values inside the step (dense output).
 
 Why polynomials
@@ -38,11 +37,7 @@ import numpy as np
 
 from .checks import ParameterError, SignalError
 
-__all__ = ["time_function", "output_function", "InputPolynomial", "PolynomialInputs", "substep_count",
-           "rk4_linear", "MAX_SUBSTEPS"]
-
-#: a communication step needing more RK4 sub-steps than this is refused
-MAX_SUBSTEPS = 100_000
+__all__ = ["time_function", "output_function", "InputPolynomial", "PolynomialInputs", "rk4_linear"]
 
 
 def time_function(name: str, function: Callable, shape: tuple[int, ...]) -> Callable:
@@ -149,16 +144,6 @@ class PolynomialInputs:
         continues = bool(times) and (abs(times[-1] - t) <= 1e-9 * max(1.0, abs(t))
                                      and abs(values[-1] - start) <= 1e-12 * max(1.0, abs(start), abs(values[-1])))
         return (times, values) if continues else ((t,), (start,))
-
-
-def substep_count(h: float, max_substep: float, rate: float = 0.0, max_change: float = math.inf) -> int:
-    """Number of equal sub-steps of a step ``h``: each at most ``max_substep`` long, and a
-    signal changing at ``rate`` changes by at most ``max_change`` on each."""
-    count = max(1, math.ceil(h / max_substep - 1e-9), math.ceil(abs(rate) * h / max_change - 1e-9))
-    if count > MAX_SUBSTEPS:
-        raise ParameterError(f"max_substep, max_dy: the step h = {h:g} (y changing by {abs(rate) * h:.3g}) "
-                             f"needs {count} RK4 sub-steps, more than {MAX_SUBSTEPS}; use a shorter step")
-    return count
 
 
 def rk4_linear(S: np.ndarray, dt: float, start, middle, end, nodes=(0.5,)):

@@ -38,6 +38,8 @@ class LuenbergerObserver(Block):
     Ports: inputs ``u`` (m), ``y`` (p); outputs ``x_hat`` (n), ``y_hat`` (p).
     """
 
+    not_state = ("model", "N", "H", "_propagator")
+
     def __init__(self, A, B=None, C=None, N=None, x_hat0=None, D=None):
         model = StateSpace.checked(A, B, C, D)
         if N is None:

@@ -25,6 +25,8 @@ class LTIPlant(Block):
     Ports: input ``u`` (m); outputs ``y`` (p) and ``x`` (n).
     """
 
+    not_state = ("model", "_propagator")
+
     def __init__(self, A, B=None, C=None, D=None, x0=None):
         self.model = StateSpace.checked(A, B, C, D)
         self.x = np.zeros(self.model.n) if x0 is None else as_vector("x0", x0, self.model.n)

@@ -15,7 +15,6 @@ hundreds of rad/s and must be resolved.
 
 from __future__ import annotations
 
-import copy
 from collections.abc import Callable
 from typing import Mapping
 
@@ -23,8 +22,8 @@ import numpy as np
 
 from observers.block import Block, Segment
 from observers.checks import ParameterError, SignalError, as_vector, require_positive
-from observers.integrators import rk4_step
-from observers.ltv_stepping import PolynomialInputs, output_function, substep_count, time_function
+from observers.integrators import DEFAULT_SUBSTEP_BUDGET, require_budget, rk4_step, substep_count
+from observers.ltv_stepping import PolynomialInputs, output_function, time_function
 
 from .signals import SampledNoise
 
@@ -52,6 +51,8 @@ class OutputNonlinearLTVPlant(Block):
         Largest change of ``C^T x`` over one sub-step.
     input_degree : int
         Degree of the polynomial ``u`` follows inside a step when the master interpolates.
+    substep_budget : int
+        Most sub-steps one communication step may take (a longer step is refused).
 
     Notes
     -----
@@ -59,8 +60,11 @@ class OutputNonlinearLTVPlant(Block):
     (4 n, the true ``Theta = [-x(0); k; b; m]``).
     """
 
+    not_state = ("A", "f", "C", "k", "b", "m", "theta", "noise", "max_substep", "max_dy", "substep_budget")
+
     def __init__(self, A: Callable, C, f: Callable, k, b, m, x0, noise: SampledNoise | None = None,
-                 max_substep: float = 1e-3, max_dy: float = 0.2, input_degree: int = 2):
+                 max_substep: float = 1e-3, max_dy: float = 0.2, input_degree: int = 2,
+                 substep_budget: int = DEFAULT_SUBSTEP_BUDGET):
         self.C = as_vector("C", C)
         if not np.any(self.C):
             raise ParameterError("C: the output vector is zero; y = C^T x would measure nothing")
@@ -75,6 +79,7 @@ class OutputNonlinearLTVPlant(Block):
         self.noise = noise
         self.max_substep = require_positive("max_substep", max_substep)
         self.max_dy = require_positive("max_dy", max_dy)
+        self.substep_budget = require_budget(substep_budget)
         self.inputs = PolynomialInputs(input_degree)
         self.input_sizes = {"u": 1}
         self.output_sizes = {"y": 1, "x": n, "theta": 4 * n}
@@ -91,15 +96,6 @@ class OutputNonlinearLTVPlant(Block):
             y = y + self.noise(t)
         return {"y": y, "x": self.x.copy(), "theta": self.theta.copy()}
 
-    def get_state(self) -> dict:
-        """What evolves (state, input history) -- not the user's functions, which an FMU state
-        must not pickle."""
-        return copy.deepcopy({"x": self.x, "inputs": self.inputs})
-
-    def set_state(self, state) -> None:
-        state = copy.deepcopy(dict(state))
-        self.x, self.inputs = state["x"], state["inputs"]
-
     def advance(self, t: float, h: float, inputs: Mapping[str, Segment]) -> None:
         polynomials, history = self.inputs.step(t, h, inputs)
         u = polynomials["u"]
@@ -111,7 +107,7 @@ class OutputNonlinearLTVPlant(Block):
             return matrices[s]
 
         dy = self.C @ self.rate(t, self.x, u.start, A(t))
-        count = substep_count(h, self.max_substep, dy, self.max_dy)
+        count = substep_count(h, self.max_substep, dy, self.max_dy, self.substep_budget)
         x = rk4_step(lambda s, x: self.rate(s, x, u.at(s - t), A(s)), t, self.x, h, count)
         if not np.all(np.isfinite(x)):
             raise SignalError(f"x: the plant state is not finite at t = {t + h:g} (unstable plant?)")

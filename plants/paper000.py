@@ -83,6 +83,8 @@ class GeneratorPlant(Block):
     when ``r > 0``, ``delta`` (n).
     """
 
+    not_state = ("model", "Ts", "A", "Gamma")
+
     def __init__(self, model: GeneratorModel, gamma_beta, gamma_theta, xi_beta0, xi_theta0, x0, Ts,
                  gamma_delta=(), xi_delta0=()):
         self.model = model

@@ -26,7 +26,7 @@ import numpy as np
 
 from observers.block import Block, Segment
 from observers.checks import ParameterError, as_matrix, as_vector, require_square
-from observers.integrators import expm, rk4_step
+from observers.integrators import DEFAULT_SUBSTEP_BUDGET, expm, require_budget, rk4_step, substep_count
 
 from .signals import SampledNoise
 
@@ -58,12 +58,18 @@ class DisturbedLTVPlant(Block):
         The sinusoids of ``f``.
     noise : SampledNoise, optional
         Measurement noise added to ``y``.
+    substep_budget : int, optional
+        Most RK4 sub-steps one communication step may take (a longer step is refused).
 
     Ports: no inputs; outputs ``y`` (1), ``x`` (n), ``theta`` (n), ``xi`` (m), ``f`` (1) and
     ``f_omega`` (N, the frequencies of ``f``, constant: the reference for estimates).
     """
 
-    def __init__(self, A, B, C, H, Gamma, xi0, x0, amplitude, omega, phase, noise: SampledNoise | None = None):
+    not_state = ("A", "B", "C", "H", "Gamma", "amplitude", "omega", "phase", "noise", "substep_budget", "_xi_step",
+                 "_rate", "_input_norm")
+
+    def __init__(self, A, B, C, H, Gamma, xi0, x0, amplitude, omega, phase, noise: SampledNoise | None = None,
+                 substep_budget: int = DEFAULT_SUBSTEP_BUDGET):
         self.A = require_square("A", A)
         n = self.A.shape[0]
         self.B = as_vector("B", B, n)
@@ -79,6 +85,7 @@ class DisturbedLTVPlant(Block):
         if np.any(self.omega < 0):
             raise ParameterError(f"omega: frequencies must be >= 0, got {self.omega.tolist()}")
         self.noise = noise
+        self.substep_budget = require_budget(substep_budget)
         self._xi_step: dict[tuple[float, float], np.ndarray] = {}   # a cache, not state
         self._rate = np.linalg.norm(self.A) + np.linalg.norm(self.Gamma) + float(np.max(self.omega, initial=0))
         self._input_norm = np.linalg.norm(self.B) * np.linalg.norm(self.H)
@@ -109,13 +116,13 @@ class DisturbedLTVPlant(Block):
     def advance(self, t: float, h: float, inputs: Mapping[str, Segment]) -> None:
         xi0 = self.xi
         Gamma = self.Gamma
+        rate = self._rate + self._input_norm * np.linalg.norm(xi0)     # bounds |eig| of the dynamics
+        substeps = substep_count(h, rate=rate, max_change=_RATE_STEP, budget=self.substep_budget)
 
         def rhs(s, x):
             xi = xi0 if not Gamma.any() else self._xi_transition(h, (s - t) / h) @ xi0
             return self.A @ x + self.B * ((self.H @ xi) @ x + self.disturbance(s))
 
-        rate = self._rate + self._input_norm * np.linalg.norm(xi0)     # bounds |eig| of the dynamics
-        substeps = max(1, int(np.ceil(h * rate / _RATE_STEP)))
         x = rk4_step(rhs, t, self.x, h, substeps)
         xi = self._xi_transition(h) @ xi0
         if not (np.all(np.isfinite(x)) and np.all(np.isfinite(xi))):

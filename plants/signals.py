@@ -74,6 +74,7 @@ class SignalSource(Block):
     """Block without inputs whose output ``y`` is ``waveform(t) + noise(t)``."""
 
     stateless = True
+    not_state = ("waveform", "noise")
 
     def __init__(self, waveform: Waveform, noise: SampledNoise | None = None):
         self.waveform = waveform

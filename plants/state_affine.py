@@ -56,6 +56,7 @@ import numpy as np
 
 from observers.block import Block, Segment
 from observers.checks import ParameterError, SignalError, as_vector, require_positive
+from observers.integrators import DEFAULT_SUBSTEP_BUDGET, require_budget, substep_count
 
 __all__ = [
     "Pendulum", "Chemostat",
@@ -74,10 +75,12 @@ class _OdePlant(Block):
     """
 
     output_index: int = 0
+    not_state = ("max_substep", "substep_budget")
 
-    def __init__(self, x0, max_substep: float):
+    def __init__(self, x0, max_substep: float, substep_budget: int = DEFAULT_SUBSTEP_BUDGET):
         self.x = as_vector("x0", x0, 2)
         self.max_substep = max_substep
+        self.substep_budget = require_budget(substep_budget)
         self.input_sizes = {"u": 1}
         self.output_sizes = {"y": 1, "x": self.x.size, "theta": self.theta.size}
 
@@ -95,7 +98,7 @@ class _OdePlant(Block):
 
     def advance(self, t: float, h: float, inputs: Mapping[str, Segment]) -> None:
         u = inputs["u"]
-        steps = max(1, math.ceil(h / self.max_substep - 1e-9))
+        steps = substep_count(h, self.max_substep, budget=self.substep_budget)
         dt = h / steps
         x = self.x
         for i in range(steps):
@@ -129,12 +132,16 @@ class Pendulum(_OdePlant):
         ``(phi(0), omega(0))`` (rad, rad/s).
     max_substep : float
         Longest RK4 step (s).
+    substep_budget : int
+        Most RK4 steps one communication step may take (a longer step is refused).
     """
 
-    def __init__(self, a, b, x0, max_substep: float = 1e-3):
+    not_state = ("a", "b")
+
+    def __init__(self, a, b, x0, max_substep: float = 1e-3, substep_budget: int = DEFAULT_SUBSTEP_BUDGET):
         self.a = float(as_vector("a", a, 1)[0])
         self.b = require_positive("b", b, allow_zero=True)
-        super().__init__(x0, require_positive("max_substep", max_substep))
+        super().__init__(x0, require_positive("max_substep", max_substep), substep_budget)
 
     @property
     def theta(self) -> np.ndarray:
@@ -190,13 +197,16 @@ class Chemostat(_OdePlant):
         ``(X(0), S(0))`` (g/L), non-negative.
     max_substep : float
         Longest RK4 step (h).
+    substep_budget : int
+        Most RK4 steps one communication step may take (a longer step is refused).
     """
 
     output_index = 1
+    not_state = ("S_in",)
 
-    def __init__(self, S_in, x0, max_substep: float = 0.01):
+    def __init__(self, S_in, x0, max_substep: float = 0.01, substep_budget: int = DEFAULT_SUBSTEP_BUDGET):
         self.S_in = require_positive("S_in", S_in)
-        super().__init__(x0, require_positive("max_substep", max_substep))
+        super().__init__(x0, require_positive("max_substep", max_substep), substep_budget)
         if np.any(self.x < 0):
             raise ParameterError(f"x0: concentrations must be >= 0, got {self.x.tolist()}")
 

@@ -11,11 +11,12 @@ import numpy as np
 import pytest
 from fmpy import extract, read_model_description
 from fmpy.fmi1 import FMICallException
-from fmpy.fmi2 import FMU2Slave
+from fmpy.fmi2 import FMU2Slave, fmi2LastSuccessfulTime
 from fmpy.validation import validate_fmu
 from scipy.linalg import expm
 
 from fmus.builder import build_fmu, is_current
+from reference.paper002 import K
 from fmus.kinds.linear import plant_definition
 from observers.lti_model import StateSpace
 
@@ -82,8 +83,9 @@ def test_fmu_runs_without_the_checkout(ship_fmus, tmp_path):
         from fmpy import simulate_fmu
         result = simulate_fmu({str(ship_fmus['ship_plant'])!r}, stop_time=0.1, output_interval=0.1,
                               start_values={{'x0[1]': 1.0}})
-        import observers
-        print(result['x[1]'][-1], result['x[2]'][-1], observers.__file__)
+        bundled = [m for name, m in sys.modules.items() if name.endswith(".observers")]
+        assert "observers" not in sys.modules and len(bundled) == 1, sorted(sys.modules)
+        print(result['x[1]'][-1], result['x[2]'][-1], bundled[0].__file__)
     """)
     completed = subprocess.run([sys.executable, "-I", "-S", "-c", script], capture_output=True, text=True,
                                cwd=tmp_path, timeout=120)
@@ -91,7 +93,7 @@ def test_fmu_runs_without_the_checkout(ship_fmus, tmp_path):
     x1, x2, location = completed.stdout.split()
     expected = expm(np.array([[0, 1], [-2, 3]]) * 0.1) @ [1.0, 0.2]
     np.testing.assert_allclose([float(x1), float(x2)], expected, rtol=1e-12)
-    assert "/resources/observers/" in location  # the bundled copy, not a checkout
+    assert "/resources/_obsfmu_" in location and "/observers/" in location  # the bundled copy, not a checkout
 
 
 def test_nan_input_is_refused_logged_and_the_state_kept(ship_fmus, capfd):
@@ -102,11 +104,15 @@ def test_nan_input_is_refused_logged_and_the_state_kept(ship_fmus, capfd):
     slave.setReal([vr["y"]], [0.05])
     slave.doStep(0.0, 1e-3)
     before = slave.getReal([vr["x_hat[1]"], vr["x_hat[2]"]])
+    saved = slave.getFMUstate()
     slave.setReal([vr["y"]], [float("nan")])
     with pytest.raises(FMICallException, match="discard"):
         slave.doStep(1e-3, 1e-3)
-    assert "input y: non-finite value" in capfd.readouterr().out
+    assert "input y = nan is not finite" in capfd.readouterr().out
     assert slave.getReal([vr["x_hat[1]"], vr["x_hat[2]"]]) == before  # untouched
+    assert slave.getRealStatus(fmi2LastSuccessfulTime) == 1e-3
+    slave.setFMUstate(saved)  # FMI 2.0: a failed step is redone from a saved state
+    slave.freeFMUstate(saved)
     slave.setReal([vr["y"]], [0.05])
     slave.doStep(1e-3, 1e-3)  # the instance keeps working
     assert np.all(np.isfinite(slave.getReal([vr["x_hat[1]"], vr["x_hat[2]"]])))
@@ -118,17 +124,30 @@ def test_invalid_parameters_are_an_error_not_fatal(ship_fmus, capfd):
     slave, vr = open_slave(ship_fmus["ship_observer"])
     slave.setupExperiment(startTime=0.0)
     slave.enterInitializationMode()
+    good = slave.getReal([vr["N[1]"], vr["N[2]"]])
     slave.setReal([vr["N[1]"], vr["N[2]"]], [-1.0, 0.0])  # A - N C no longer Hurwitz
     with pytest.raises(FMICallException, match=r"status 3 \(error\)"):
         slave.exitInitializationMode()
     assert "N: not Hurwitz" in capfd.readouterr().out
-    with pytest.raises(FMICallException, match="discard"):  # the instance refuses to step, and stays alive
+    with pytest.raises(FMICallException, match="error"):  # the instance refuses to step, and stays alive
         slave.doStep(0.0, 1e-3)
+    # refused, not failed: still in initialization mode (docs/faults.md), where the parameters can be fixed
+    assert "fmi2DoStep is not allowed in state initializationMode" in capfd.readouterr().out
+    slave.setReal([vr["N[1]"], vr["N[2]"]], good)
+    slave.exitInitializationMode()
+    slave.doStep(0.0, 1e-3)
+    slave.reset()  # and a reset starts over from the default parameters
+    slave.setupExperiment(startTime=0.0)
+    slave.enterInitializationMode()
+    slave.exitInitializationMode()
+    slave.doStep(0.0, 1e-3)
     slave.freeInstance()
 
 
 def test_python_exceptions_become_fmi2error(ship_fmus, capfd):
     slave, vr = open_slave(ship_fmus["ship_observer"])
+    slave.setupExperiment(startTime=0.0)
+    slave.enterInitializationMode()  # fmi2GetReal is not allowed before (FMI 2.0 state machine)
     with pytest.raises(FMICallException, match=r"status 3 \(error\)"):
         slave.getReal([10_000])  # no such value reference
     assert "get_real" in capfd.readouterr().out
@@ -141,6 +160,7 @@ def test_one_fmu_instantiated_many_times_in_one_process(ship_fmus):
     path = ship_fmus["ship_controller"]
     description = read_model_description(str(path))
     directory = extract(str(path))
+    references = {v.name: v.valueReference for v in description.modelVariables}
     for k in range(40):
         slave = FMU2Slave(guid=description.guid, unzipDirectory=directory,
                           modelIdentifier=description.coSimulation.modelIdentifier, instanceName=f"c{k}")
@@ -148,6 +168,10 @@ def test_one_fmu_instantiated_many_times_in_one_process(ship_fmus):
         slave.setupExperiment(startTime=0.0)
         slave.enterInitializationMode()
         slave.exitInitializationMode()
+        slave.setReal([references["x_hat[1]"], references["x_hat[2]"], references["r"]], [k, 1.0, 0.5])
+        slave.doStep(0.0, 1e-3)
+        # every instance is alive and its own: u = -K x_hat + r with this instance's inputs
+        assert slave.getReal([references["u"]]) == pytest.approx([-(K[0, 0] * k + K[0, 1]) + 0.5], rel=1e-12)
         slave.terminate()
         slave.freeInstance()
 
@@ -201,9 +225,11 @@ def test_logging_after_a_master_run_does_not_crash_the_host(ship_fmus, capfd):
     cosimulate(System([Component("plant", ship_fmus["ship_plant"])], []), 0.01, 1e-3)
     gc.collect()
     slave, _ = open_slave(ship_fmus["ship_observer"], "after")
+    slave.setupExperiment(startTime=0.0)
+    slave.enterInitializationMode()
     with pytest.raises(FMICallException, match="error"):
         slave.getReal([10_000])  # logs an error through fmpy's default callbacks
-    assert "get_real: KeyError: 10000" in capfd.readouterr().out
+    assert "get_real refused: value reference 10000 does not exist" in capfd.readouterr().out
     slave.freeInstance()
 
 
@@ -211,6 +237,19 @@ def test_bad_interpolation_mode_is_refused_and_logged(ship_fmus, capfd):
     slave, vr = open_slave(ship_fmus["ship_observer"], "mode")
     slave.setupExperiment(startTime=0.0)
     slave.enterInitializationMode()
-    slave.setInteger([vr["y_interpolation"]], [7])  # logged: "... 7 is not 0 (hold) ..."
+    slave.setInteger([vr["u_interpolation"], vr["y_interpolation"]], [1, 2])
+    with pytest.raises(FMICallException, match=r"status 3 \(error\)"):   # nothing of the call is set
+        slave.setInteger([vr["u_interpolation"], vr["y_interpolation"]], [0, 7])
     assert "y_interpolation: 7 is not 0 (hold), 1 (extrapolate) or 2 (interpolate)" in capfd.readouterr().out
+    assert slave.getInteger([vr["u_interpolation"], vr["y_interpolation"]]) == [1, 2]
     slave.freeInstance()
+
+
+def test_an_fmu_bundles_only_the_runtime_part_of_fmus(ship_fmus):
+    """Master, CLI, scenarios and campaigns stay out: editing them changes no FMU's code hash."""
+    from fmus.builder import FMU_RUNTIME
+    names = zipfile.ZipFile(ship_fmus["ship_observer"]).namelist()
+    bundled = {n.split("/", 2)[2] for n in names if n.startswith("resources/_obsfmu_") and "/fmus/" in n}
+    assert "fmus/slave.py" in bundled and "fmus/kinds/linear.py" in bundled
+    assert all(name.startswith(FMU_RUNTIME) for name in bundled), sorted(bundled)
+    assert not {"fmus/master.py", "fmus/cli.py", "fmus/scenarios/__init__.py"} & bundled

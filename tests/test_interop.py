@@ -20,21 +20,25 @@ from fmus.export import export
 from fmus.master import cosimulate
 from fmus.scenarios import ensure_fmus, get, run, system
 
-libcosimpy = pytest.importorskip("libcosimpy")
-from libcosimpy.CosimEnums import CosimExecutionState  # noqa: E402,F401
-from libcosimpy.CosimExecution import CosimExecution  # noqa: E402
-from libcosimpy.CosimLogging import CosimLogLevel, log_output_level  # noqa: E402
-from libcosimpy.CosimObserver import CosimObserver  # noqa: E402
-
-log_output_level(CosimLogLevel.ERROR)
-
 from reference.paper002 import K
 from reference.paper002 import exact as ship_exact
 
 
-def libcosim_run(execution: CosimExecution, watch: list[tuple[str, str]], steps: int) -> np.ndarray:
+@pytest.fixture(scope="module")
+def libcosim():
+    """libcosimpy's execution and observer classes; only the tests that run libcosim skip without it."""
+    pytest.importorskip("libcosimpy")
+    from libcosimpy.CosimExecution import CosimExecution
+    from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
+    from libcosimpy.CosimObserver import CosimObserver
+
+    log_output_level(CosimLogLevel.ERROR)
+    return CosimExecution, CosimObserver
+
+
+def libcosim_run(libcosim, execution, watch: list[tuple[str, str]], steps: int) -> np.ndarray:
     """Step the execution, recording the watched variables after every step."""
-    observer = CosimObserver.create_last_value()
+    observer = libcosim[1].create_last_value()
     execution.add_observer(observer)
     index = {info.name.decode(): info.index for info in execution.slave_infos()}
     references = {name: {v.name.decode(): v.reference for v in execution.slave_variables(i)}
@@ -46,35 +50,36 @@ def libcosim_run(execution: CosimExecution, watch: list[tuple[str, str]], steps:
     return np.array(rows)
 
 
-def osp_execution(path):
-    return CosimExecution.from_osp_config_file(str(path))
+def osp_execution(libcosim, path):
+    return libcosim[0].from_osp_config_file(str(path))
 
 
-def ssp_execution(path, step):
+def ssp_execution(libcosim, path, step):
     directory = path.parent / "unpacked"
     zipfile.ZipFile(path).extractall(directory)
-    return CosimExecution.from_ssp_file(str(directory), step_size=int(round(step * 1e9)))
+    return libcosim[0].from_ssp_file(str(directory), step_size=int(round(step * 1e9)))
 
 
 @pytest.mark.parametrize("fmt", ["osp", "ssp"])
-def test_libcosim_reproduces_our_jacobi_master(fmt, build_dir, tmp_path):
+def test_libcosim_reproduces_our_jacobi_master(libcosim, fmt, build_dir, tmp_path):
     scenario, step, stop = get("ltv-ls-bounded"), 1e-3, 2.0
-    path = export(scenario, fmt, tmp_path, build_dir, step=step, stop_time=stop)
-    execution = osp_execution(path) if fmt == "osp" else ssp_execution(path, step)
+    path = export(scenario, fmt, tmp_path, build_dir, step=step, stop_time=stop, system_outputs=False)
+    execution = osp_execution(libcosim, path) if fmt == "osp" else ssp_execution(libcosim, path, step)
     watch = [("observer", f"theta_hat[{j}]") for j in range(1, 9)] + [("observer", "x_hat[1]"), ("observer", "x_hat[2]")]
-    theirs = libcosim_run(execution, watch, int(round(stop / step)))
+    theirs = libcosim_run(libcosim, execution, watch, int(round(stop / step)))
     ours, _ = run("ltv-ls-bounded", build_dir, stop_time=stop, step=step, order="jacobi", ramp=0)  # as libcosim
     mine = np.column_stack([ours[f"{i}.{v}"] for i, v in watch])[1:]
     assert np.max(np.abs(theirs - mine)) < 1e-9  # measured 2.5e-13
 
 
-def test_libcosim_ship_loop_converges_at_first_order(build_dir, tmp_path):
+def test_libcosim_ship_loop_converges_at_first_order(libcosim, build_dir, tmp_path):
     errors = {}
     for step in (1e-4, 5e-5):
         path = export(get("ship"), "osp", tmp_path / f"h{step}", build_dir, step=step, stop_time=0.2)
         steps = int(round(0.2 / step))
-        states = libcosim_run(osp_execution(path), [("plant", "x[1]"), ("plant", "x[2]"),
-                                                    ("observer", "x_hat[1]"), ("observer", "x_hat[2]")], steps)
+        states = libcosim_run(libcosim, osp_execution(libcosim, path),
+                              [("plant", "x[1]"), ("plant", "x[2]"), ("observer", "x_hat[1]"), ("observer", "x_hat[2]")],
+                              steps)
         errors[step] = np.max(np.abs(states - ship_exact(step * np.arange(1, steps + 1))))
     ours, _ = run("ship", build_dir, stop_time=0.2, step=1e-4, order="jacobi")
     ours_error = np.max(np.abs(np.column_stack([ours.vector("plant.x"), ours.vector("observer.x_hat")])
@@ -177,7 +182,7 @@ def _ecospy():
 def test_ecos_runs_the_ssp_package_like_our_jacobi_master(build_dir, tmp_path):
     EcosSimulation = _ecospy()
     step, stop = 1e-3, 2.0
-    path = export(get("ltv-ls-bounded"), "ssp", tmp_path, build_dir, step=step, stop_time=stop)
+    path = export(get("ltv-ls-bounded"), "ssp", tmp_path, build_dir, step=step, stop_time=stop, system_outputs=False)
     simulation = EcosSimulation(step_size=step, ssp_path=str(path))
     simulation.init(parameter_set="start")
     names = [f"theta_hat[{j}]" for j in range(1, 9)] + ["x_hat[1]", "x_hat[2]"]

@@ -237,8 +237,8 @@ def test_observer_state_is_restored_after_a_refused_sample(monkeypatch):
         observer.advance(20.0, 1.0, {"u": Segment.hold([u[20]]), "y": Segment.hold([x[20, 0]])})
     after = observer.get_state()
     np.testing.assert_array_equal(after["window"], before["window"])
-    np.testing.assert_array_equal(after["gamma_drem"].theta_hat, before["gamma_drem"].theta_hat)
-    np.testing.assert_array_equal(after["eta_drem"].theta_hat, before["eta_drem"].theta_hat)
+    np.testing.assert_array_equal(after["gamma_drem"]["theta_hat"], before["gamma_drem"]["theta_hat"])
+    np.testing.assert_array_equal(after["eta_drem"]["theta_hat"], before["eta_drem"]["theta_hat"])
     assert (after["samples"], after["nu_gamma"], after["nu_eta"]) == (
         before["samples"], before["nu_gamma"], before["nu_eta"])
     monkeypatch.undo()

@@ -188,7 +188,7 @@ def test_noise_parameters_are_checked():
 
 
 def observer_state(o):
-    return o.S.copy(), o.estimator.theta_hat.copy(), o.estimator.P.copy(), dict(o.get_state()["inputs"].samples)
+    return o.S.copy(), o.estimator.theta_hat.copy(), o.estimator.P.copy(), o.get_state()["inputs"]["samples"]
 
 
 def test_a_non_finite_input_is_refused_and_the_state_kept():

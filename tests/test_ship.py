@@ -138,7 +138,7 @@ def test_cli_errors_are_clear(build_dir, capsys):
     assert cli.main(["run", "ship", "--build-dir", str(build_dir), "--set", "ghost.x=1"]) == 2
     assert "unknown instance 'ghost'" in capsys.readouterr().err
     assert cli.main(["run", "ship", "--build-dir", str(build_dir), "--step", "-1"]) == 2
-    assert "step: must be a positive number" in capsys.readouterr().err
+    assert "argument --step: must be a positive finite number" in capsys.readouterr().err
 
 
 def test_set_changes_the_plant_and_the_result_follows(build_dir):

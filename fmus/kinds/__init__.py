@@ -3,7 +3,9 @@
 A kind is a factory ``factory(params, options) -> Block`` where ``params``
 maps each parameter name to its array (full shape) and ``options`` holds the
 non-numeric build settings of the definition.  Factories are looked up by
-name from a fixed table -- never by evaluating a string.
+name from a fixed table -- never by evaluating a string.  Inside an FMU this package runs
+relocated (:mod:`fmus.bundle`): the ``kind_module`` a definition records (``"fmus.kinds.ltv"``)
+is imported from the FMU's own code.
 """
 
 from __future__ import annotations
@@ -18,9 +20,12 @@ import numpy as np
 from observers.block import Block
 from observers.checks import ParameterError
 
+from ..bundle import local_name, portable_name
+
 Factory = Callable[[dict[str, np.ndarray], dict[str, Any]], Block]
 
 _FACTORIES: dict[str, Factory] = {}
+_PACKAGE = portable_name(__name__)  # "fmus.kinds", relocated or not
 
 
 def register(name: str) -> Callable[[Factory], Factory]:
@@ -41,9 +46,9 @@ def create_block(kind: str, params: dict[str, np.ndarray], options: dict[str, An
     the kind it uses.  Unknown kinds are a :class:`ParameterError`.
     """
     if kind not in _FACTORIES and module:
-        if not (module.startswith(__name__ + ".") and module.replace(".", "").replace("_", "").isalnum()):
-            raise ParameterError(f"kind_module: {module!r} is not a module of {__name__}")
-        importlib.import_module(module)
+        if not (module.startswith(_PACKAGE + ".") and module.replace(".", "").replace("_", "").isalnum()):
+            raise ParameterError(f"kind_module: {module!r} is not a module of {_PACKAGE}")
+        importlib.import_module(local_name(module))
     try:
         factory = _FACTORIES[kind]
     except KeyError:
@@ -66,6 +71,6 @@ def module_of(kind: str) -> str:
     """The module that registers ``kind``."""
     load_all()
     try:
-        return _FACTORIES[kind].__module__
+        return portable_name(_FACTORIES[kind].__module__)
     except KeyError:
         raise ParameterError(f"kind: unknown block kind {kind!r}; known: {sorted(_FACTORIES)}") from None

@@ -86,6 +86,7 @@ def generator_plant_definition(model_name: str, *, gamma_beta=EXAMPLE["gamma_bet
         inputs=[Port("u", 1, "plant input u(k), taken at the step start", scalar=True)],
         outputs=outputs,
         options={"f": f},
+        variable_step=False,  # one step = one sample of length Ts
     )
 
 
@@ -128,4 +129,5 @@ def gpebo_observer_definition(model_name: str, *, Ts: float = 1.0, k_gamma: floa
             Port("restart_time", 1, "time of the last restart of the GPEBO filters", "s", scalar=True),
         ],
         options={"f": f},
+        variable_step=False,  # one step = one sample of length Ts
     )

@@ -13,6 +13,7 @@ from collections.abc import Callable
 import numpy as np
 
 from observers.checks import ParameterError
+from observers.integrators import DEFAULT_SUBSTEP_BUDGET
 from observers.ltv_adaptive import LTVAdaptiveObserver
 from plants.ltv import OutputNonlinearLTVPlant
 from plants.signals import SampledNoise
@@ -38,7 +39,7 @@ def _plant(p, options):
     noise = SampledNoise(float(p["noise_std"]), float(p["noise_dt"]), float(p["noise_seed"]))   # checks all three
     return OutputNonlinearLTVPlant(_function(options, "A"), p["C"], _function(options, "f"), p["k"], p["b"],
                                    p["m"], p["x0"], noise, float(p["max_substep"]), float(p["max_dy"]),
-                                   _degree(p))
+                                   _degree(p), _budget(p))
 
 
 @register(OBSERVER_KIND)
@@ -46,7 +47,11 @@ def _observer(p, options):
     return LTVAdaptiveObserver(_function(options, "A"), p["C"], _function(options, "L"), _function(options, "f"),
                                float(p["gamma"]), float(p["beta"]), float(p["f0"]), float(p["M"]),
                                p["x_hat0"], p["k_hat0"], p["b_hat0"], p["m_hat0"],
-                               float(p["max_substep"]), float(p["max_dy"]), _degree(p))
+                               float(p["max_substep"]), float(p["max_dy"]), _degree(p), _budget(p))
+
+
+def _budget(p):
+    return p.get("substep_budget", DEFAULT_SUBSTEP_BUDGET)
 
 
 def _reference(function: Callable | str) -> str:
@@ -59,7 +64,7 @@ def _scalar(name, value, description, unit=None) -> Parameter:
 
 def _degree(p) -> int:
     degree = float(p["input_degree"])
-    if degree != int(degree):
+    if not np.isfinite(degree) or degree != int(degree):
         raise ParameterError(f"input_degree: expected an integer from 1 to 5, got {degree:g}")
     return int(degree)
 
@@ -68,7 +73,8 @@ def _stepping(max_substep: float, max_dy: float, input_degree: int) -> list[Para
     return [_scalar("max_substep", max_substep, "longest RK4 sub-step inside a communication step", "s"),
             _scalar("max_dy", max_dy, "largest change of y over one RK4 sub-step (resolves f(y))"),
             _scalar("input_degree", input_degree, "degree of the polynomial through the last communication "
-                    "points that interpolated inputs follow inside a step (2: parabola)")]
+                    "points that interpolated inputs follow inside a step (2: parabola)"),
+            Parameter.substep_budget()]
 
 
 def ltv_plant_definition(model_name: str, A, C, f, k, b, m, x0, *, noise_std=0.0, noise_dt=1e-3,

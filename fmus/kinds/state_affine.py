@@ -13,7 +13,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from observers.integrators import DEFAULT_SUBSTEP_BUDGET
 from observers.state_affine import StateAffineModel, StateAffineObserver
+from observers.state_affine.observer import SUBSTEP_BUDGET
 from plants.state_affine import Chemostat, Pendulum
 
 from ..callables import resolve
@@ -37,7 +39,12 @@ def _observer(p, options):
         Psi=functions.get("Psi"), w=functions.get("w"), phi=functions.get("phi"), c=functions.get("c"),
         phi_L=functions.get("phi_L"), C=p["C"] if constant else None, L=p["L"] if constant else None)
     return StateAffineObserver(model, p["rates"], float(p["gamma"]), float(p["gamma_x"]), float(p["mu"]),
-                               p["chi_hat0"], p.get("theta_hat0"), float(p["max_substep"]))
+                               p["chi_hat0"], p.get("theta_hat0"), float(p["max_substep"]),
+                               p.get("substep_budget", SUBSTEP_BUDGET))
+
+
+def _budget(p):
+    return p.get("substep_budget", DEFAULT_SUBSTEP_BUDGET)
 
 
 def observer_definition(model_name: str, *, dims: dict[str, int], functions: dict[str, str], rates,
@@ -78,6 +85,7 @@ def observer_definition(model_name: str, *, dims: dict[str, int], functions: dic
         Parameter.of("gamma_x", gamma_x, "gain of the correction term of Statement 3 (rate gamma_x Delta^2)", rate),
         Parameter.of("mu", mu, "switching level of the finite-time estimate, in (0, 1)"),
         Parameter.of("max_substep", max_substep, "longest internal integration step", time_unit),
+        Parameter.substep_budget(SUBSTEP_BUDGET),
         Parameter.of("chi_hat0", np.zeros(q) if chi_hat0 is None else chi_hat0,
                      "initial estimate chi_hat(0) of the image chi = phi(x) (the observer's state)"),
     ]
@@ -110,7 +118,7 @@ def observer_definition(model_name: str, *, dims: dict[str, int], functions: dic
 
 @register("state-affine-pendulum")
 def _pendulum(p, options):
-    return Pendulum(p["a"], p["b"], p["x0"])
+    return Pendulum(p["a"], p["b"], p["x0"], substep_budget=_budget(p))
 
 
 def pendulum_definition(model_name: str, a: float, b: float, x0) -> FmuDefinition:
@@ -121,7 +129,8 @@ def pendulum_definition(model_name: str, a: float, b: float, x0) -> FmuDefinitio
         description="pendulum phi'' = -a sin(phi) - b phi' + u measured in angle (paper 004 example)",
         parameters=[Parameter.of("a", a, "gravity coefficient g/l (unknown to the observer)", "1/s2"),
                     Parameter.of("b", b, "viscous friction coefficient (unknown to the observer)", "1/s"),
-                    Parameter.of("x0", x0, "initial state (angle, angular velocity)", ["rad", "rad/s"])],
+                    Parameter.of("x0", x0, "initial state (angle, angular velocity)", ["rad", "rad/s"]),
+                    Parameter.substep_budget()],
         inputs=[Port("u", 1, "torque / (m l^2)", "rad/s2", scalar=True)],
         outputs=[Port("y", 1, "measured angle", "rad", scalar=True),
                  Port("x", 2, "true state (angle, angular velocity)", ["rad", "rad/s"]),
@@ -131,7 +140,7 @@ def pendulum_definition(model_name: str, a: float, b: float, x0) -> FmuDefinitio
 
 @register("state-affine-chemostat")
 def _chemostat(p, options):
-    return Chemostat(p["S_in"], p["x0"])
+    return Chemostat(p["S_in"], p["x0"], substep_budget=_budget(p))
 
 
 def chemostat_definition(model_name: str, S_in: float, x0) -> FmuDefinition:
@@ -142,7 +151,8 @@ def chemostat_definition(model_name: str, S_in: float, x0) -> FmuDefinition:
         description="chemostat X' = mu(S) X - D X, S' = -k mu(S) X + D (S_in - S), y = S; time in hours "
                     "(paper 004 example)",
         parameters=[Parameter.of("S_in", S_in, "feed substrate concentration (unknown to the observer)", "g/L"),
-                    Parameter.of("x0", x0, "initial state (biomass X, substrate S)", "g/L")],
+                    Parameter.of("x0", x0, "initial state (biomass X, substrate S)", "g/L"),
+                    Parameter.substep_budget()],
         inputs=[Port("u", 1, "dilution rate D", "1/h", scalar=True)],
         outputs=[Port("y", 1, "measured substrate concentration S", "g/L", scalar=True),
                  Port("x", 2, "true state (biomass X, substrate S)", "g/L"),

@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from observers.checks import ParameterError
+from observers.integrators import DEFAULT_SUBSTEP_BUDGET
 from observers.uio import UIOFiniteTimeObserver, UIOSettings
 from plants.paper003 import DisturbedLTVPlant
 from plants.signals import SampledNoise
@@ -39,7 +40,8 @@ def _plant(p, options):
     if float(p["noise_std"]) != 0.0:
         noise = SampledNoise(float(p["noise_std"]), float(p["noise_dt"]), float(p["noise_seed"]))
     return DisturbedLTVPlant(p["A"], p["B"], p["C"], p["H"], p["Gamma"], p["xi0"], p["x0"],
-                             p["amplitude"], p["omega"], p["phase"], noise)
+                             p["amplitude"], p["omega"], p["phase"], noise,
+                             p.get("substep_budget", DEFAULT_SUBSTEP_BUDGET))
 
 
 @register("uio-ftdrem-observer")
@@ -49,7 +51,8 @@ def _observer(p, options):
         lambdas=(p["lambda1"], p["lambda2"], p["lambda3"]), gamma=p["gamma"], mu=p["mu"],
         rates=[p[f"rates{k}"] for k in range(1, 5)], settle_tol=p["settle_tol"],
         settle_window=p["settle_window"], t_identify=p["t_identify"], normalize=bool(float(p["normalize"])),
-        filter_order=None if order == 0 else order)
+        filter_order=None if order == 0 else order,
+        substep_budget=p.get("substep_budget", DEFAULT_SUBSTEP_BUDGET))
     return UIOFiniteTimeObserver(p["A"], p["B"], p["C"], _integer(p, "r"), p["L"], p["H"], p["B_bar"], p["z0"],
                                  p["xi0_free"], p["xi0_known"], int(options["harmonics"]), settings)
 
@@ -83,6 +86,7 @@ def ltv_plant_definition(model_name: str, A, B, C, H, Gamma, xi0, x0, amplitude,
             Parameter.scalar("noise_std", noise_std, "standard deviation of the sample-and-hold measurement noise on y"),
             Parameter.scalar("noise_dt", noise_dt, "hold interval of the noise", "s"),
             Parameter.scalar("noise_seed", noise_seed, "seed of the noise (a non-negative integer)"),
+            Parameter.substep_budget(),
         ],
         inputs=[],
         outputs=[
@@ -135,6 +139,7 @@ def uio_observer_definition(model_name: str, A, B, C, r, L, H, B_bar, z0, xi0_fr
             Parameter.scalar("settle_tol", s.settle_tol, "relative tolerance of the identification test"),
             Parameter.scalar("settle_window", s.settle_window, "quiet window of the identification test", "s"),
             Parameter.scalar("t_identify", s.t_identify, "a stage still running this long after its start is stopped", "s"),
+            Parameter.substep_budget(s.substep_budget),
         ],
         inputs=[Port("y", 1, "measured output y", scalar=True)],
         outputs=[

@@ -1,10 +1,18 @@
-"""The native FMI 2.0 binary of every obsfmu FMU, compiled on demand.
+"""The native binaries of every obsfmu FMU, compiled on demand and cached per machine.
 
-``obsfmu_fmi2.c`` forwards the FMI C API to the generic Python slave
-(:mod:`fmus.slave`) running in the importer's Python interpreter.  It is
-compiled once per machine and Python version with the C compiler (``cc`` or
-``$CC``) against the Python headers and the FMI 2 headers shipped with fmpy,
-and cached in ``$XDG_CACHE_HOME/obsfmu`` (default ``~/.cache/obsfmu``).
+An FMU carries two shared objects (design and limits: ``docs/portability.md``):
+
+* the **loader** (``loader.c``), the FMU's ``binaries/<platform>/<model>.so``: plain C with no
+  Python symbols, so it loads in any FMI importer; it enforces the FMI 2.0 state machine and
+  finds Python: the interpreter already running in the process, or the one recorded when the FMU
+  was built (``resources/obsfmu_native.txt``, see :func:`python_record`), or the one named by
+  ``$OBSFMU_PYTHON``, started once per process;
+* the **bridge** (``bridge.c``): the FMI calls -> the Python slave, compiled against the Python
+  headers of the interpreter that builds the FMU (that Python version runs it).
+
+Both are compiled with the C compiler (``$CC`` or ``cc``; FMI headers from fmpy) and cached in
+``$XDG_CACHE_HOME/obsfmu/native`` (default ``~/.cache/obsfmu/native``) under a key of their
+sources, flags and -- for the bridge -- the Python version and headers.
 """
 
 from __future__ import annotations
@@ -18,9 +26,21 @@ import sysconfig
 import tempfile
 from pathlib import Path
 
-__all__ = ["SOURCE", "NativeBuildError", "platform_folder", "shared_library"]
+__all__ = ["NativeBuildError", "platform_folder", "fmi_headers", "loader_library", "bridge_library", "bridge_name",
+           "python_record", "identity", "BOOTSTRAP", "OVERRIDE", "STARTS"]
 
-SOURCE = Path(__file__).with_name("obsfmu_fmi2.c")
+HERE = Path(__file__).parent
+LOADER, BRIDGE = HERE / "loader.c", HERE / "bridge.c"
+#: the FMI 3.0 loader (same bridge, same Python rules; docs/fmi3.md)
+LOADER_FMI3 = HERE / "loader_fmi3.c"
+#: what the sources include (obsfmu_native.h, loader_common.h): part of every cache key
+HEADERS = tuple(sorted(HERE.glob("*.h")))
+#: run by the bridge at each instantiation to import the FMU's own code (copied into resources/)
+BOOTSTRAP = HERE / "bootstrap.py"
+#: environment variable pointing an FMU at another Python installation (read by the loader)
+OVERRIDE = "OBSFMU_PYTHON"
+#: start values an exported FMU copy sets itself (resources/, read by loader_common.h; fmus/export.py)
+STARTS = "obsfmu_start.txt"
 
 
 class NativeBuildError(RuntimeError):
@@ -36,11 +56,16 @@ def platform_folder() -> str:
     raise NativeBuildError(f"platform {sys.platform!r}: building FMU binaries is supported on Linux and macOS")
 
 
-def _fmi_headers() -> Path:
+def _suffix() -> str:
+    return ".dylib" if sys.platform == "darwin" else ".so"
+
+
+def fmi_headers() -> Path:
+    """The FMI 2.0 and 3.0 C headers (shipped with fmpy)."""
     import fmpy
     headers = Path(fmpy.__file__).parent / "c-code"
-    if not (headers / "fmi2Functions.h").is_file():
-        raise NativeBuildError(f"FMI 2 headers not found in {headers} (fmpy installation incomplete)")
+    if not all((headers / name).is_file() for name in ("fmi2Functions.h", "fmi3Functions.h")):
+        raise NativeBuildError(f"FMI 2/3 headers not found in {headers} (fmpy installation incomplete)")
     return headers
 
 
@@ -56,26 +81,79 @@ def _cache_dir() -> Path:
     return root / "obsfmu" / "native"
 
 
-def shared_library() -> Path:
-    """Path of the compiled binary for this interpreter (compiled on first use)."""
-    python_include = sysconfig.get_paths()["include"]
-    if not (Path(python_include) / "Python.h").is_file():
-        raise NativeBuildError(f"Python.h not found in {python_include} (install the Python development headers)")
-    headers = _fmi_headers()
-    suffix = ".dylib" if sys.platform == "darwin" else ".so"
-    key = hashlib.sha256(SOURCE.read_bytes() + python_include.encode() + sys.version.encode()).hexdigest()[:16]
-    target = _cache_dir() / f"obsfmu_fmi2-{key}{suffix}"
+def _compiled(stem: str, source: Path, flags: list[str], key_material: str) -> Path:
+    """``source`` compiled with ``flags`` into the cache (once per key), atomically."""
+    key = hashlib.sha256(source.read_bytes() + b"".join(h.read_bytes() for h in HEADERS) + " ".join(flags).encode()
+                         + key_material.encode()).hexdigest()[:16]
+    target = _cache_dir() / f"{stem}-{key}{_suffix()}"
     if target.is_file():
         return target
     target.parent.mkdir(parents=True, exist_ok=True)
-    flags = ["-undefined", "dynamic_lookup"] if sys.platform == "darwin" else []
     with tempfile.TemporaryDirectory(dir=target.parent) as temp:
         output = Path(temp) / target.name
-        command = [_compiler(), "-shared", "-fPIC", "-O2", "-Wall", "-o", str(output), str(SOURCE),
-                   f"-I{python_include}", f"-I{headers}", *flags, "-ldl"]
+        command = [_compiler(), "-shared", "-fPIC", "-O2", "-Wall", "-fvisibility=hidden", "-o", str(output),
+                   str(source), f"-I{HERE}", f"-I{fmi_headers()}", *flags]
         completed = subprocess.run(command, capture_output=True, text=True)
         if completed.returncode != 0:
             raise NativeBuildError("compiling the FMU binary failed:\n" + " ".join(command) + "\n"
                                    + completed.stderr)
         os.replace(output, target)  # atomic: concurrent builds never see a partial file
     return target
+
+
+def loader_library(fmi_version: int = 2) -> Path:
+    """The loader of FMI ``fmi_version`` (2 or 3) for this platform (no Python in it: one binary
+    serves every Python version)."""
+    if fmi_version not in (2, 3):
+        raise NativeBuildError(f"fmi_version: {fmi_version!r} is not 2 or 3")
+    # snprintf may truncate over-long paths on purpose (they then do not exist): no warning for that
+    flags = ["-pthread", "-ldl", "-Wno-format-truncation"] + ([] if sys.platform == "darwin" else ["-Wl,-Bsymbolic"])
+    if fmi_version == 3:
+        return _compiled("obsfmu_loader_fmi3", LOADER_FMI3, flags, platform_folder())
+    return _compiled("obsfmu_loader", LOADER, flags, platform_folder())
+
+
+def bridge_library() -> Path:
+    """The bridge for this interpreter's Python version (compiled against its headers)."""
+    include = sysconfig.get_paths()["include"]
+    if not (Path(include) / "Python.h").is_file():
+        raise NativeBuildError(f"Python.h not found in {include} (install the Python development headers, "
+                               f"e.g. python{_version()}-dev)")
+    flags = [f"-I{include}"] + (["-undefined", "dynamic_lookup"] if sys.platform == "darwin" else [])
+    return _compiled(f"obsfmu_bridge_cp{_version().replace('.', '')}", BRIDGE, flags, include + sys.version)
+
+
+def bridge_name() -> str:
+    """File name of the bridge inside an FMU's binaries folder."""
+    return f"obsfmu_bridge_cp{_version().replace('.', '')}{_suffix()}"
+
+
+def _version() -> str:
+    return f"{sys.version_info.major}.{sys.version_info.minor}"
+
+
+def _libpython() -> str:
+    """The shared libpython of this interpreter, or "" when it has none (a statically linked Python)."""
+    get = sysconfig.get_config_var
+    version = _version() + (getattr(sys, "abiflags", "") or "")
+    names = [get("INSTSONAME") or ""] + [f"libpython{version}{s}" for s in (".so.1.0", ".so.1", ".so", ".dylib")]
+    folders = [get("LIBDIR") or "", os.path.join(get("LIBDIR") or "", get("MULTIARCH") or ""), get("LIBPL") or ""]
+    for folder in filter(None, folders):
+        for name in filter(None, names):
+            path = os.path.join(folder, name)
+            if not name.endswith(".a") and os.path.isfile(path):
+                return path
+    return ""
+
+
+def python_record() -> dict[str, str]:
+    """What the loader needs to start this Python in a process without one (under ``env -i``)."""
+    executable = os.path.abspath(sys.executable) if sys.executable else ""
+    return {"python_version": _version(), "python_executable": executable, "python_library": _libpython(),
+            "python_multiarch": sysconfig.get_config_var("MULTIARCH") or ""}
+
+
+def identity() -> str:
+    """Everything about the binaries an FMU depends on: their sources and the recorded Python."""
+    sources = b"".join(path.read_bytes() for path in (LOADER, LOADER_FMI3, BRIDGE, *HEADERS, BOOTSTRAP))
+    return hashlib.sha256(sources).hexdigest() + repr(sorted(python_record().items())) + sys.version

@@ -10,17 +10,27 @@ missing, applies ``--set`` overrides and co-simulates.
 
 from __future__ import annotations
 
+import difflib
+import math
 import re
+import sys
+import zipfile
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..builder import build_fmu, is_current
-from ..definition import FmuDefinition
-from ..master import Component, Connection, SimulationError, System, cosimulate
-from ..result import Result
+import fmpy
+from fmpy import read_model_description
 
-__all__ = ["Scenario", "Summary", "SCENARIOS", "get", "ensure_fmus", "ensure_all", "run", "parse_overrides"]
+from ..builder import build_fmu, is_current
+from ..fmi3 import build_folder
+from ..fmi3.elements import scalar_variables
+from ..definition import FmuDefinition
+from ..master import Component, Connection, Recorder, Session, SimulationError, System
+from ..result import Result, RunInfo
+
+__all__ = ["Scenario", "Summary", "SCENARIOS", "get", "ensure_fmus", "ensure_all", "run", "run_info", "parse_overrides",
+           "system", "changed_parameters"]
 
 
 @dataclass
@@ -29,9 +39,11 @@ class Summary:
 
     lines: list[str]
     metrics: dict[str, float] = field(default_factory=dict)
+    #: one sentence: the agreement with the independent monolithic reference, or why none applies
+    reference: str = ""
 
     def __str__(self) -> str:
-        return "\n".join(self.lines)
+        return "\n".join(self.lines + ([self.reference] if self.reference else []))
 
 
 @dataclass
@@ -48,7 +60,8 @@ class Scenario:
     order: str = "gauss-seidel"
     coupling: str = "linear"
     summarize: Callable[[Result], Summary] | None = None
-    plot: Callable[[Result, Path], None] | None = None
+    #: ``plot(result, path)`` writes the figure to ``path`` and as vector graphics beside it
+    plot: Callable[[Result, Path], list[Path]] | None = None
     time_unit: str = "s"  #: the unit of time of the models (``h`` for the chemostat)
     #: spacing of the rows that ``obsfmu all`` writes to CSV (None: every communication point)
     output_interval: float | None = None
@@ -56,6 +69,8 @@ class Scenario:
     not_adaptive: str | None = None
     #: the first step split into h/2^ramp, ..., h/2 (see :func:`fmus.master.cosimulate`)
     ramp: int = 0
+    #: what the paper claims for this example, in our words and numbers (for ``obsfmu report``)
+    claim: str = ""
 
 
 def _registry() -> dict[str, Scenario]:
@@ -74,9 +89,6 @@ def _registry() -> dict[str, Scenario]:
     return found
 
 
-SCENARIOS: dict[str, Scenario] = _registry()
-
-
 def get(name: str) -> Scenario:
     try:
         return SCENARIOS[name]
@@ -90,22 +102,50 @@ def _items(scenario: Scenario):
         yield definition, tuple(extra_modules)
 
 
-def _ensure(items, build_dir: Path, force: bool) -> dict[str, Path]:
+def _damage(path: Path, fmi_version: int = 2) -> str | None:
+    """Why a cached FMU cannot be used as it is (None: it can)."""
+    try:
+        description = read_model_description(str(path))
+    except Exception as exc:  # lxml, zip and schema errors alike: the file is damaged
+        return f"its modelDescription.xml cannot be read ({type(exc).__name__}: {exc})"
+    if description.coSimulation is None:
+        return "it has no co-simulation interface"
+    folder = fmpy.platform if fmi_version == 2 else fmpy.platform_tuple
+    binary = f"binaries/{folder}/{description.coSimulation.modelIdentifier}{fmpy.sharedLibraryExtension}"
+    with zipfile.ZipFile(path) as archive:
+        if binary not in archive.namelist():
+            return f"it has no binary {binary}"
+    return None
+
+
+def _ensure(items, build_dir: Path, force: bool, fmi_version: int) -> dict[str, Path]:
     paths = {}
+    folder = build_folder(build_dir, fmi_version)
     for definition, extra_modules in items:
-        path = Path(build_dir) / f"{definition.model_name}.fmu"
-        if force or not is_current(path, definition, extra_modules):
-            build_fmu(definition, build_dir, extra_modules)
+        path = folder / f"{definition.model_name}.fmu"
+        if force or not is_current(path, definition, extra_modules, fmi_version):
+            build_fmu(definition, folder, extra_modules, fmi_version)
+        elif (problem := _damage(path, fmi_version)) is not None:
+            print(f"obsfmu: note: {path}: {problem}; rebuilding it", file=sys.stderr)
+            build_fmu(definition, folder, extra_modules, fmi_version)
+        problem = _damage(path, fmi_version)
+        if problem is not None:
+            raise SimulationError(f"{path}: {problem} even after rebuilding it")
         paths[definition.model_name] = path
     return paths
 
 
-def ensure_fmus(scenario: Scenario, build_dir: Path, force: bool = False) -> dict[str, Path]:
-    """Build the scenario's FMUs into ``build_dir`` unless current ones are there."""
-    return _ensure(_items(scenario), build_dir, force)
+def ensure_fmus(scenario: Scenario, build_dir: Path, force: bool = False, fmi_version: int = 2) -> dict[str, Path]:
+    """Build the scenario's FMUs into ``build_dir`` unless current, intact ones are there.
+
+    A cached FMU built from the same sources but damaged since (unreadable modelDescription,
+    missing binary) is rebuilt with a note on stderr.  FMI 3.0 FMUs (``fmi_version=3``) go to
+    ``build_dir/fmi3`` (:func:`fmus.fmi3.build_folder`).
+    """
+    return _ensure(_items(scenario), build_dir, force, fmi_version)
 
 
-def ensure_all(scenarios, build_dir: Path, force: bool = False) -> dict[str, Path]:
+def ensure_all(scenarios, build_dir: Path, force: bool = False, fmi_version: int = 2) -> dict[str, Path]:
     """Every distinct FMU of ``scenarios``, each built once (``ltv-ls`` and ``ltv-ls-bounded`` share theirs).
 
     Two scenarios naming the same model must define it identically (else :class:`SimulationError`).
@@ -117,14 +157,14 @@ def ensure_all(scenarios, build_dir: Path, force: bool = False) -> dict[str, Pat
             if (known[0].to_json(), known[1]) != (definition.to_json(), extra_modules):
                 raise SimulationError(f"{definition.model_name}: scenarios {known[2]!r} and {scenario.name!r} "
                                       f"define this FMU differently")
-    return _ensure(((d, extra) for d, extra, _ in distinct.values()), build_dir, force)
+    return _ensure(((d, extra) for d, extra, _ in distinct.values()), build_dir, force, fmi_version)
 
 
 _OVERRIDE = re.compile(r"^(?P<instance>[A-Za-z_]\w*)\.(?P<variable>[^=]+)=(?P<value>.+)$")
 
 
 def parse_overrides(items: list[str]) -> list[tuple[str, str, float]]:
-    """``["plant.x0[1]=0.1", ...]`` -> ``[("plant", "x0[1]", 0.1), ...]`` (values are numbers)."""
+    """``["plant.x0[1]=0.1", ...]`` -> ``[("plant", "x0[1]", 0.1), ...]`` (finite numbers only)."""
     parsed = []
     for item in items:
         match = _OVERRIDE.match(item.strip())
@@ -134,40 +174,141 @@ def parse_overrides(items: list[str]) -> list[tuple[str, str, float]]:
             value = float(match["value"])
         except ValueError:
             raise SimulationError(f"--set {item!r}: {match['value']!r} is not a number") from None
+        if not math.isfinite(value):
+            raise SimulationError(f"--set {item!r}: the value must be a finite number")
         parsed.append((match["instance"], match["variable"].strip(), value))
     return parsed
 
 
+def _variables(fmu: Path) -> dict:
+    """The FMU's variables by FMI 2.0 name (an FMI 3.0 FMU's array elements: fmus/fmi3/elements.py)."""
+    return {v.name: v for v in scalar_variables(fmu)}
+
+
+def _start(variable) -> float | None:
+    if variable.start is None:
+        return None
+    if variable.type == "Boolean":
+        return float(str(variable.start).lower() in ("1", "true"))
+    return float(variable.start)
+
+
+def _check_override(instance: str, name: str, value: float, variables: dict, connected: set[str]) -> None:
+    """``value`` may be set as the start value of ``instance.name`` (causality, type, declared range)."""
+    where = f"--set {instance}.{name}"
+    if name not in variables:
+        close = difflib.get_close_matches(name, list(variables), n=3)
+        hint = f"; did you mean {', '.join(close)}?" if close else ""
+        raise SimulationError(f"{where}: no such variable{hint}")
+    variable = variables[name]
+    if variable.causality == "output":
+        raise SimulationError(f"{where}: is an output of {instance} and cannot be set")
+    if variable.causality not in ("parameter", "input") or variable.variability == "constant":
+        raise SimulationError(f"{where}: is a {variable.variability} {variable.causality} variable and "
+                              "cannot be set")
+    if name in connected:
+        raise SimulationError(f"{where}: is a connected input; its value comes from the connection")
+    if variable.type in ("Integer", "Enumeration") and value != int(value):
+        raise SimulationError(f"{where}={value:g}: {variable.type} variable, expected a whole number")
+    if variable.type == "Boolean" and value not in (0.0, 1.0):
+        raise SimulationError(f"{where}={value:g}: Boolean variable, expected 0 or 1")
+    for bound, outside, word in ((variable.min, value.__lt__, "below the minimum"),
+                                 (variable.max, value.__gt__, "above the maximum")):
+        if bound is not None and outside(float(bound)):
+            meaning = f" ({variable.description})" if variable.description else ""
+            raise SimulationError(f"{where}={value:g}: {word} {float(bound):g} declared by the FMU{meaning}")
+
+
+def _connected_inputs(scenario: Scenario, instance: str, variables: dict) -> set[str]:
+    ports = [c.target.partition(".")[2] for c in scenario.connections if c.target.partition(".")[0] == instance]
+    return {name for name in variables for port in ports if name == port or name.startswith(port + "[")}
+
+
 def system(scenario: Scenario, fmus: dict[str, Path], overrides=()) -> System:
-    """The scenario's system with ``overrides`` applied to the start values."""
+    """The scenario's system with ``overrides`` applied to the start values (checked against the FMUs)."""
     components = [Component(instance, fmus[model], dict(start)) for instance, model, start in scenario.components]
     by_name = {c.name: c for c in components}
+    described = {}
     for instance, variable, value in overrides:
         if instance not in by_name:
             raise SimulationError(f"--set {instance}.{variable}: unknown instance {instance!r}; "
                                   f"instances: {', '.join(by_name)}")
+        if instance not in described:
+            variables = _variables(by_name[instance].fmu)
+            described[instance] = variables, _connected_inputs(scenario, instance, variables)
+        _check_override(instance, variable, value, *described[instance])
         by_name[instance].start[variable] = value
     return System(components, list(scenario.connections))
 
 
+def changed_parameters(result: Result) -> str:
+    """``""`` when ``result`` ran with its scenario's own parameters, else which ones it changed.
+
+    Summaries use it to decide whether a stored reference or a paper's table is this run's.
+    """
+    if result.info is None:
+        return "the run's parameters are unknown"
+    changed = result.info.changed
+    return "" if not changed else "parameters changed: " + ", ".join(f"{k} = {v:g}" for k, v in changed.items())
+
+
+def run_info(scenario: Scenario, fmus: dict[str, Path], overrides=(), **settings) -> RunInfo:
+    """Units, parameter values and defaults of a run of ``scenario`` (see :class:`RunInfo`)."""
+    info = RunInfo(scenario=scenario.name, time_unit=scenario.time_unit, **settings)
+    given = {}
+    for instance, model, start in scenario.components:
+        for variable in scalar_variables(fmus[model]):
+            key = f"{instance}.{variable.name}"
+            if variable.causality == "output" and variable.unit:
+                info.units[key] = variable.unit
+            elif variable.causality in ("parameter", "input") and (value := _start(variable)) is not None:
+                info.defaults[key] = float(start.get(variable.name, value))
+        given.update({f"{instance}.{name}": float(value) for name, value in start.items()})
+    info.defaults.update(given)
+    info.parameters = {**info.defaults, **{f"{i}.{v}": float(value) for i, v, value in overrides}}
+    return info
+
+
 def run(name: str, build_dir: Path | str = "build", *, stop_time: float | None = None,
         step: float | None = None, order: str | None = None, coupling: str | None = None,
-        overrides=(), progress: bool = False, tolerance: float = 1e-6,
+        overrides=(), progress: bool = False, tolerance: float = 1e-6, recorder: Recorder | None = None,
+        should_stop: Callable[[], bool] | None = None, fmi_version: int = 2,
         ramp: int | None = None) -> tuple[Result, Summary | None]:
     """Build (if needed) and co-simulate scenario ``name``; returns the result and its summary.
 
-    ``None`` for a setting means the scenario's default (``ramp``: its start-up ramp).
+    ``recorder`` receives the communication points (default: in memory) and ``should_stop`` is
+    asked after each of them (see :meth:`fmus.master.Session.run`).  The result carries a
+    :class:`RunInfo`; an interrupted run has no summary.  FMU warnings of a successful run are
+    printed once each on stderr (errors are part of the :class:`SimulationError`).  ``fmi_version``
+    3 runs the scenario's FMI 3.0 FMUs (same results, same column names).  ``None`` for a setting
+    means the scenario's default (``ramp``: its start-up ramp, :func:`fmus.master.cosimulate`).
     """
     scenario = get(name)
     if (order or scenario.order) == "adaptive" and scenario.not_adaptive:
         raise SimulationError(f"{name}: the adaptive master cannot run this scenario: {scenario.not_adaptive}")
-    fmus = ensure_fmus(scenario, Path(build_dir))
-    result = cosimulate(system(scenario, fmus, overrides),
-                        stop_time=scenario.stop_time if stop_time is None else stop_time,
-                        step=scenario.step if step is None else step,
-                        order=order or scenario.order,
-                        coupling=coupling or scenario.coupling,
-                        progress=progress,
-                        tolerance=tolerance,
-                        ramp=scenario.ramp if ramp is None else ramp)
-    return result, scenario.summarize(result) if scenario.summarize else None
+    fmus = ensure_fmus(scenario, Path(build_dir), fmi_version=fmi_version)
+    the_system = system(scenario, fmus, overrides)
+    settings = dict(stop_time=scenario.stop_time if stop_time is None else stop_time,
+                    step=scenario.step if step is None else step,
+                    order=order or scenario.order, coupling=coupling or scenario.coupling)
+    info = run_info(scenario, fmus, overrides, **settings)
+    with Session(the_system, echo_log=False) as session:
+        result = session.run(**settings, progress=progress, tolerance=tolerance, recorder=recorder,
+                             should_stop=should_stop, time_unit=scenario.time_unit,
+                             ramp=scenario.ramp if ramp is None else ramp)
+        _print_warnings(session)
+    result.info = info
+    summary = scenario.summarize(result) if scenario.summarize and not result.interrupted else None
+    return result, summary
+
+
+def _print_warnings(session: Session) -> None:
+    seen = set()
+    for instance, status, message in getattr(getattr(session, "logger", None), "messages", []):
+        if status == "WARNING" and (instance, message) not in seen:
+            seen.add((instance, message))
+            print(f"[WARNING] {instance}: {message}", file=sys.stderr)
+
+
+#: every scenario, by name (discovered last: the scenario modules import the helpers above)
+SCENARIOS: dict[str, Scenario] = _registry()

@@ -60,6 +60,8 @@ class DiscreteDREM:
     cannot be stretched to another step.
     """
 
+    not_state = ("p", "k", "normalize")       # fixed settings (observers.state)
+
     def __init__(self, extension, k, normalize: bool = True, theta0=None):
         if not isinstance(extension, DelayExtension):
             raise ParameterError(

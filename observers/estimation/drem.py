@@ -71,6 +71,8 @@ class DREM:
         ``Delta`` used in the last step (0 before the first).
     """
 
+    not_state = ("p", "gamma", "normalize")       # fixed settings (observers.state)
+
     def __init__(self, extension, gamma, normalize: bool = True, theta0=None):
         _check_extension(extension)
         self.extension = extension
@@ -134,6 +136,9 @@ class FiniteTimeDREM:
     converged : bool
         ``switch_time is not None``.
     """
+
+    not_state = ("p", "mu")
+    state_optional = {"switch_time": None}
 
     def __init__(self, extension, gamma, mu, normalize: bool = True, theta0=None):
         self.drem = DREM(extension, gamma, normalize=normalize, theta0=theta0)

@@ -72,6 +72,7 @@ class KreisselmeierExtension:
     """
 
     rows = None
+    not_state = ("p", "a")        # fixed settings (observers.state); the filter states are the state
 
     def __init__(self, p: int, a: float):
         self.p = dimension("p", p)
@@ -115,6 +116,8 @@ class FilterBankExtension:
     p : int
         ``rows * (n + keep_original)``, the number of parameters it serves.
     """
+
+    not_state = ("rates", "rows", "keep_original", "p")
 
     def __init__(self, rates, rows: int = 1, keep_original: bool = True):
         self.rates = as_vector("rates", rates)
@@ -169,6 +172,8 @@ class DelayExtension:
     Samples before the start are zero, so ``Delta = 0`` until
     ``max(delays)`` samples have been seen.
     """
+
+    not_state = ("delays", "rows", "p")
 
     def __init__(self, delays, rows: int = 1):
         values = as_vector("delays", delays)

@@ -79,6 +79,9 @@ class LeastSquaresForgetting:
     ``M`` by the growth of one step (a factor ``e^{beta dt}`` at most).
     """
 
+    not_state = ("p", "gamma", "beta", "f0", "M")   # fixed settings (observers.state)
+    state_optional = {"_frozen_F": None}             # an array once the gain bound was met
+
     def __init__(self, p: int, gamma: float, beta: float, f0: float, M: float, theta0=None):
         self.p = dimension("p", p)
         self.gamma = require_positive("gamma", gamma)

@@ -42,6 +42,8 @@ class GpeboFilters:
         ``e_hat(t0)``: the state estimate at the start.
     """
 
+    not_state = ("model", "A")
+
     def __init__(self, model: GeneratorModel, Gamma: np.ndarray, x_start: np.ndarray):
         self.model = model
         self.A = shift_matrix(model.n)

@@ -31,7 +31,6 @@ been exciting (e.g. a constant input): the estimates are not to be trusted.
 
 from __future__ import annotations
 
-import copy
 from typing import Mapping
 
 import numpy as np
@@ -75,6 +74,8 @@ class GpeboObserver(Block):
     ``eta_hat`` (N), ``beta_hat``, ``theta_hat`` (n), ``excited``,
     ``nu_gamma``, ``nu_eta``, ``restart_time``.
     """
+
+    not_state = ("model", "regression", "Ts", "k_gamma", "k_eta", "restart_tol", "excitation_tol")
 
     def __init__(self, model: GeneratorModel, Ts: float, k_gamma: float = 1e-8, k_eta: float = 1e-8,
                  gamma_hat0=(-0.5, 0.5), eta_hat0=None, x_hat0=None, restart_tol: float = 1e-11,
@@ -127,11 +128,6 @@ class GpeboObserver(Block):
         return float(np.max(np.abs(gammas - self.filter_gammas))) > self.restart_tol * scale
 
     # ------------------------------------------------------------------ Block
-    def get_state(self) -> dict:
-        """Deep copy of the evolving attributes; the fixed structure (model, regression, sizes) is shared."""
-        shared = (self.model, self.regression, self.input_sizes, self.output_sizes)
-        return copy.deepcopy(vars(self), {id(item): item for item in shared})
-
     def outputs(self, t: float, inputs: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
         eta_hat = self.eta_drem.theta_hat
         beta, theta, _ = self.model.coefficients(self.filters.generator_estimate(eta_hat))
@@ -150,7 +146,7 @@ class GpeboObserver(Block):
         try:
             self._sample(t, u, y)
         except Exception:
-            self.set_state(saved)
+            self.set_state(saved, check=False)
             raise
 
     def _sample(self, t: float, u: float, y: float) -> None:

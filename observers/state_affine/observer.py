@@ -46,19 +46,22 @@ The step is computed completely before the state is replaced, so a refused step
 from __future__ import annotations
 
 import math
-from typing import Any, Mapping, NamedTuple
+from typing import Mapping, NamedTuple
 
 import numpy as np
 
 from observers.block import Block, Segment
 from observers.checks import ParameterError, SignalError, as_vector, require_positive
 from observers.estimation import finite_time_estimate, mix, phi1, scalar_gradient_step
-from observers.integrators import rk4_step
+from observers.integrators import require_budget, rk4_step, substep_count
 
 from .model import StateAffineModel, Terms
 from .parametrization import Parametrization
 
-__all__ = ["StateAffineObserver"]
+__all__ = ["StateAffineObserver", "SUBSTEP_BUDGET"]
+
+#: default ``substep_budget``: an internal step costs about 1 ms, so a call takes a second at most
+SUBSTEP_BUDGET = 1_000
 
 
 class _Evolving(NamedTuple):
@@ -101,6 +104,8 @@ class StateAffineObserver(Block):
         Initial estimate of ``col(theta_l, theta_p)`` (zeros by default).
     max_substep : float, optional
         Longest internal step (s); ``None``: one internal step per communication step.
+    substep_budget : int, optional
+        Most internal steps one communication step may take (a longer step is refused).
 
     Attributes
     ----------
@@ -116,8 +121,12 @@ class StateAffineObserver(Block):
         First communication-step end with ``nu < mu``.
     """
 
+    not_state = ("model", "parametrization", "gamma", "gamma_x", "mu", "max_substep", "substep_budget",
+                 "theta_hat0")
+    state_optional = {"switch_time": None}
+
     def __init__(self, model: StateAffineModel, rates, gamma, gamma_x, mu=0.98, chi_hat0=None,
-                 theta_hat0=None, max_substep=None):
+                 theta_hat0=None, max_substep=None, substep_budget=SUBSTEP_BUDGET):
         if not isinstance(model, StateAffineModel):
             raise ParameterError(f"model: expected a StateAffineModel, got {type(model).__name__}")
         self.model = model
@@ -129,6 +138,7 @@ class StateAffineObserver(Block):
             raise ParameterError(f"mu: must lie in (0, 1), got {self.mu:g}")
         q, n_theta = model.q, model.l + model.p
         self.max_substep = None if max_substep is None else require_positive("max_substep", max_substep)
+        self.substep_budget = require_budget(substep_budget)
         self.theta_hat0 = np.zeros(n_theta) if theta_hat0 is None else as_vector("theta_hat0", theta_hat0, n_theta)
         chi_hat0 = np.zeros(q) if chi_hat0 is None else as_vector("chi_hat0", chi_hat0, q)
         self.input_sizes = {"y": model.ny, "u": model.nu}
@@ -207,7 +217,7 @@ class StateAffineObserver(Block):
 
     def advance(self, t: float, h: float, inputs: Mapping[str, Segment]) -> None:
         y_line, u_line = inputs["y"], inputs["u"]
-        steps = 1 if self.max_substep is None else max(1, math.ceil(h / self.max_substep - 1e-9))
+        steps = 1 if self.max_substep is None else substep_count(h, self.max_substep, budget=self.substep_budget)
         dt = h / steps
         cache: dict[float, tuple[Terms, np.ndarray]] = {}
 
@@ -237,16 +247,3 @@ class StateAffineObserver(Block):
             self.switch_time = t + h
         (self.filters, self.mixed, self.delta, self.theta_drem, self.theta_hat, self.nu,
          self.chi_hat) = state
-
-    # ------------------------------------------------------------------ FMU state
-    _STATE = ("filters", "mixed", "delta", "theta_drem", "theta_hat", "nu", "chi_hat", "switch_time")
-
-    def get_state(self) -> dict[str, Any]:
-        """The evolving arrays only (the model's functions are rebuilt from the FMU definition)."""
-        return {name: np.copy(getattr(self, name)) if isinstance(getattr(self, name), np.ndarray)
-                else getattr(self, name) for name in self._STATE}
-
-    def set_state(self, state: Mapping[str, Any]) -> None:
-        for name in self._STATE:
-            value = state[name]
-            setattr(self, name, np.copy(value) if isinstance(value, np.ndarray) else value)

@@ -28,7 +28,7 @@ import numpy as np
 
 from observers.checks import ParameterError
 from observers.estimation import FilterBankExtension, FiniteTimeDREM
-from observers.integrators import rk4_step
+from observers.integrators import DEFAULT_SUBSTEP_BUDGET, rk4_step, substep_count
 from observers.modal import observer_gain
 
 __all__ = ["IdentifiedPlantObserver"]
@@ -48,9 +48,14 @@ class IdentifiedPlantObserver:
         ``x_hat(t_0)``.
     rates, gamma, mu, normalize
         Extension filter rates and FT-DREM settings for ``e(t_0)``.
+    substep_budget : int
+        Most RK4 sub-steps one step may take (a longer step is refused before any work).
     """
 
-    def __init__(self, A, B, C, theta, poles, x_hat0, rates, gamma, mu, normalize):
+    not_state = ("A", "B", "C", "substep_budget")
+
+    def __init__(self, A, B, C, theta, poles, x_hat0, rates, gamma, mu, normalize,
+                 substep_budget: int = DEFAULT_SUBSTEP_BUDGET):
         self.A, self.B, self.C = A, B, C
         n = A.shape[0]
         try:
@@ -60,6 +65,7 @@ class IdentifiedPlantObserver:
         self.x_hat = np.array(x_hat0, dtype=float)
         self.Psi = np.eye(n)
         self.drem = FiniteTimeDREM(FilterBankExtension(rates), gamma, mu, normalize=normalize)
+        self.substep_budget = substep_budget
 
     @property
     def estimate(self) -> np.ndarray:
@@ -73,9 +79,11 @@ class IdentifiedPlantObserver:
         ``adapt=False`` keeps ``e_hat(t_0)`` (the stage is identified).
         """
         C = self.C
+        A_K = self.A + np.outer(self.B, theta) - np.outer(self.K, C)
+        rate = np.linalg.norm(A_K)                       # Frobenius: bounds |eig|, no SVD
+        substeps = substep_count(h, rate=rate, max_change=0.01, budget=self.substep_budget)
         if adapt:
             self.drem.update(y0 - C @ self.x_hat, C @ self.Psi, h)
-        A_K = self.A + np.outer(self.B, theta) - np.outer(self.K, C)
         n = self.A.shape[0]
 
         def rhs(s, state):
@@ -83,7 +91,5 @@ class IdentifiedPlantObserver:
             dx = A_K @ x_hat + self.B * f_hat(s) + self.K * (y0 + (s - t) * dy)
             return np.concatenate([dx, (A_K @ Psi).ravel()])
 
-        rate = np.linalg.norm(A_K)                       # Frobenius: bounds |eig|, no SVD
-        substeps = max(1, int(np.ceil(h * rate / 0.01)))
         state = rk4_step(rhs, t, np.concatenate([self.x_hat, self.Psi.ravel()]), h, substeps)
         self.x_hat, self.Psi = state[:n], state[n:].reshape(n, n)

@@ -35,7 +35,6 @@ held over it.
 
 from __future__ import annotations
 
-import copy
 from dataclasses import dataclass
 from typing import Mapping
 
@@ -44,6 +43,7 @@ import numpy as np
 from observers.block import Block, Segment
 from observers.checks import ParameterError, as_matrix, as_vector, finite_signal, require_positive
 from observers.estimation import FilterBankExtension, FiniteTimeDREM
+from observers.integrators import DEFAULT_SUBSTEP_BUDGET, require_budget
 
 from .design import UIODesign
 from .harmonic import harmonic_regressor, undo_filter
@@ -71,6 +71,7 @@ class UIOSettings:
         paper's ``Delta = det``; normalised, ``gamma Delta^2 <= gamma`` is too slow for stage 2).
     filter_order : order of the filter of (14), ``>= r``; ``None``: ``r + 1``
         (see :class:`~observers.uio.regressions.RegressionSignals`).
+    substep_budget : most RK4 sub-steps of stage 4 in one step (a longer step is refused).
     """
 
     lambdas: tuple = (10.0, 10.0, 10.0)
@@ -82,6 +83,7 @@ class UIOSettings:
     t_identify: float = 10.0
     normalize: bool = False
     filter_order: int | None = None
+    substep_budget: int = DEFAULT_SUBSTEP_BUDGET
 
 
 def default_rates(count: int, lam: float) -> np.ndarray:
@@ -123,6 +125,10 @@ class UIOFiniteTimeObserver(Block):
     ``t_identified`` (4; the time, -1 before).
     """
 
+    not_state = ("design", "H", "B_bar", "free", "xi0_known", "harmonics", "lambdas", "gamma", "mu", "normalize",
+                 "sizes", "rates", "signals", "_settle", "substep_budget")
+    state_optional = {"state_stage": "_blank_state_stage", "state_detector": "_blank_state_detector"}
+
     def __init__(self, A, B, C, r, L, H, B_bar, z0, xi0_free, xi0_known, harmonics=1,
                  settings: UIOSettings | None = None):
         s = settings or UIOSettings()
@@ -147,6 +153,7 @@ class UIOFiniteTimeObserver(Block):
         self.gamma = as_vector("gamma", s.gamma, 4)
         self.mu = float(as_vector("mu", s.mu, 1)[0])
         self.normalize = bool(s.normalize)
+        self.substep_budget = require_budget(s.substep_budget)
         m_u = int(self.free.sum())
         self.sizes = (d.V.shape[1], m_u + N + N * m_u, 2 * N, n)           # unknowns of stages 1-4
         rates = s.rates if s.rates is not None else [default_rates(p - 1, self.lambdas[0]) for p in self.sizes]
@@ -223,15 +230,18 @@ class UIOFiniteTimeObserver(Block):
         return stages
 
     # ------------------------------------------------------------------ Block interface
-    _MUTABLE = ("w", "y_last", "stage", "detectors", "state_stage", "state_detector")
+    def _state_stage(self, theta: np.ndarray, x_hat0: np.ndarray) -> IdentifiedPlantObserver:
+        return IdentifiedPlantObserver(self.design.A, self.design.B, self.design.C, theta,
+                                       np.linalg.eigvals(self.design.F), x_hat0, self.rates[3], self.gamma[3],
+                                       self.mu, self.normalize, self.substep_budget)
 
-    def get_state(self) -> dict:
-        """Copy of the evolving state (the design and the signal model never change)."""
-        return copy.deepcopy({name: getattr(self, name) for name in self._MUTABLE})
+    def _blank_state_stage(self) -> IdentifiedPlantObserver:
+        """Stage 4 of the right shape to restore a saved state into (see :mod:`observers.state`)."""
+        n = self.design.n
+        return self._state_stage(np.zeros(n), np.zeros(n))
 
-    def set_state(self, state) -> None:
-        for name in self._MUTABLE:
-            setattr(self, name, copy.deepcopy(state[name]))
+    def _blank_state_detector(self) -> SettlingDetector:
+        return SettlingDetector(*self._settle)
 
     def outputs(self, t: float, inputs: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
         status = self.status()
@@ -247,31 +257,17 @@ class UIOFiniteTimeObserver(Block):
         }
 
     def advance(self, t: float, h: float, inputs: Mapping[str, Segment]) -> None:
-        """One step; on any failure the state is left as it was (snapshot/restore)."""
+        """One step; on any failure the state is left as it was (the step rebinds what it changes,
+        so the saved state is a cheap rollback point, see :mod:`observers.state`)."""
         segment = inputs["y"]
         y0 = float(finite_signal("input y", segment.start)[0])
         dy = float(finite_signal("input y slope", segment.slope)[0])
-        snapshot = self._snapshot()
+        saved = self.get_state()
         try:
             self._step(t, h, y0, dy)
         except Exception:
-            vars(self).update(snapshot)
+            self.set_state(saved, check=False)
             raise
-
-    def _snapshot(self) -> dict:
-        """What a step may change, copied as cheaply as is safe.
-
-        Every step rebinds ``w``, ``y_last`` and the arrays of the stage-4 observer (a shallow
-        copy keeps the old ones); only running estimators and the detectors change inside.
-        """
-        running = [code == RUNNING for code, _ in self.status()]
-        state_stage = self.state_stage
-        if state_stage is not None:
-            state_stage = copy.deepcopy(state_stage) if running[3] else copy.copy(state_stage)
-        return {"w": self.w, "y_last": self.y_last,
-                "stage": [copy.deepcopy(s) if r else s for s, r in zip(self.stage, running)],
-                "detectors": copy.deepcopy(self.detectors), "state_stage": state_stage,
-                "state_detector": copy.deepcopy(self.state_detector)}
 
     def _step(self, t: float, h: float, y0: float, dy: float) -> None:
         running = [code == RUNNING for code, _ in self.status()]
@@ -305,9 +301,7 @@ class UIOFiniteTimeObserver(Block):
             return
         if self.state_stage is None:
             if stage2.done and stage3.done:
-                self.state_stage = IdentifiedPlantObserver(
-                    self.design.A, self.design.B, self.design.C, self.theta, np.linalg.eigvals(self.design.F),
-                    self.x_hat(), self.rates[3], self.gamma[3], self.mu, self.normalize)
+                self.state_stage = self._state_stage(self.theta, self.x_hat())
                 self.state_detector = SettlingDetector(*self._settle, start=t)
             return
         drem = self.state_stage.drem

@@ -55,6 +55,9 @@ class SettlingDetector:
         When the status left ``RUNNING``.
     """
 
+    not_state = ("tol", "window", "timeout")
+    state_optional = {"reference": None, "time": None, "average": None, "_last_t": None}
+
     def __init__(self, tol: float, window: float, timeout: float, start: float = 0.0):
         self.tol = require_positive("settle_tol", tol)
         self.window = require_positive("settle_window", window, allow_zero=True)

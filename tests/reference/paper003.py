@@ -26,8 +26,14 @@ Continuous-time laws (the co-simulated observer samples the same equations):
   ``k' = gamma Delta (Y - Delta k)``, ``nu' = -gamma Delta^2 nu``,
   ``k* = (k - min(nu, mu) k(0)) / (1 - min(nu, mu))``, ``k(0) = 0``.
 
-A stage stops adapting at the time the co-simulated observer reported it identified
-(``stop_times``); stage 1 stops when its own ``nu`` crosses ``mu``.
+Stage 1 stops adapting when its own ``nu`` crosses ``mu``.  Stages 2-4 stop when the reference
+itself finds them identified (``docs/paper003.md``, "when has it converged"), checked at the
+communication points ``k * check_step`` as the co-simulated observer does: at the first check
+time ``T`` at which the stage's FT-DREM has switched (``nu < mu``; stage 3 also needs stage 2
+identified) and its estimate has stayed within ``tol (1 + max|ref|)`` of its value ``ref`` at
+the start of the last ``window`` seconds (``ref`` is reset whenever it moves further or the stage
+is not ready).  Stage 4 starts when stages 2 and 3 are identified.  (No timeout: the noise-free
+example settles.)
 
 Run as a script to print the numbers of ``docs/paper003.md`` and (``--write``) the scenario's
 reference CSV.
@@ -49,8 +55,8 @@ POLES = (-0.5, -0.3)
 PAPER = dict(x0=(-1.0, 1.0), xi0=(0.0, -1.0), amplitude=5.0, omega=1.0, phase=0.0)
 TUNING = dict(z0=(-3.0, 3.0), lam=10.0, gamma=1e6, mu=0.98, rates1=(10.0,), rates2=(10.0, 5.0),
               rates3=(10.0,), rates4=(10.0,))
-#: stage times reported by the co-simulation at the default step (stages 2, 3 identified; stage 4)
-DEFAULT_STOP_TIMES = (6.547, 7.046, 7.559)
+#: identification test of stages 2-4: tolerance, quiet window (s), check grid (the scenario's step)
+SETTLING = dict(tol=1e-6, window=0.5, check_step=1e-3)
 
 
 def design():
@@ -258,14 +264,16 @@ class Reference:
         return z_bar + self.F @ self.G * (C @ s[LAYOUT["x"]])
 
     # -------------------------------------------------------------- integration
-    def simulate(self, times, stop_times=DEFAULT_STOP_TIMES, rtol=1e-10, atol=1e-12):
-        """Outputs at ``times``: dict of arrays (``x``, ``x_tilde0_hat``, ``xi0_hat``, ``omega_hat``, ...).
+    def simulate(self, times, rtol=1e-10, atol=1e-12, tol=SETTLING["tol"], window=SETTLING["window"],
+                 check_step=SETTLING["check_step"], chunk=1.0):
+        """Outputs at ``times``: dict of arrays (``x``, ``x_tilde0_hat``, ``xi0_hat``, ``omega_hat``, ...)
+        and ``stage_times`` (stages 2, 3 and 4 identified, found by the reference itself).
 
-        ``stop_times = (T2, T3, T4)``: stages 2 and 3 stop adapting at ``T2``, ``T3``; stage 4
-        starts at ``max(T2, T3)`` and stops adapting at ``T4``.
+        Integrated in chunks of ``chunk`` seconds with dense output; the identification test runs on
+        the check grid; when a stage is identified at ``T`` inside a chunk, the chunk is integrated
+        again up to ``T`` exactly and the stage stops there.
         """
         times = np.asarray(times, dtype=float)
-        T2, T3, T4 = stop_times
         s = np.zeros(LAYOUT.size)
         s[LAYOUT["x"]] = self.x0
         s[LAYOUT["z"]] = self.z0
@@ -276,38 +284,65 @@ class Reference:
         self.adapt = [True, True, True, True]
         out = {name: np.empty((times.size, size)) for name, size in
                (("x", 2), ("x_tilde0_hat", 2), ("xi0_hat", 2), ("omega_hat", 1), ("f_hat", 1), ("x_hat", 2))}
-
-        def record(solution, t0, t1):
-            for i in np.nonzero((times >= t0) & (times <= t1))[0]:
-                state = solution.sol(times[i]) if solution is not None else s
-                self._record(out, i, times[i], state)
+        detectors = {2: _Settling(tol, window), 3: _Settling(tol, window)}
+        found: dict[int, float] = {}
 
         def switch1(t, state):
             return state[LAYOUT["nu1"]][0] - self.mu
         switch1.terminal, switch1.direction = True, -1
 
-        t = 0.0
-        T4_start = max(T2, T3)
-        boundaries = [(T2, 1), (T3, 2), (T4_start, "start4"), (T4, 3), (times[-1], None)]
-        pending_switch = True
-        for end, action in sorted(boundaries, key=lambda item: item[0]):
-            end = min(end, times[-1])
-            while t < end:
-                with np.errstate(over="ignore", invalid="ignore"):   # scipy's finite-difference Jacobian probes
-                    solution = solve_ivp(self.rhs, (t, end), s, method="Radau", rtol=rtol, atol=atol,
-                                         dense_output=True, events=switch1 if pending_switch else None)
-                if not solution.success:
-                    raise RuntimeError(solution.message)
-                t_stop = solution.t[-1]
-                record(solution, t, t_stop)
-                s, t = solution.y[:, -1].copy(), t_stop
-                if pending_switch and solution.status == 1:
-                    self.adapt[0], pending_switch = False, False
-            if action == "start4":
+        def solve(t0, t1, state):
+            with np.errstate(over="ignore", invalid="ignore"):   # scipy's finite-difference Jacobian probes
+                solution = solve_ivp(self.rhs, (t0, t1), state, method="Radau", rtol=rtol, atol=atol,
+                                     dense_output=True, events=switch1 if self.adapt[0] else None)
+            if not solution.success:
+                raise RuntimeError(solution.message)
+            return solution
+
+        def check(t, state) -> bool:
+            """The identification tests at check time ``t``; True when a stage changed."""
+            estimates = {2: self.stage2_estimate(state), 3: _ft(state[LAYOUT["k3"]], state[LAYOUT["nu3"]][0], self.mu),
+                         4: _ft(state[LAYOUT["k4"]], state[LAYOUT["nu4"]][0], self.mu)}
+            ready = {k: state[LAYOUT[f"nu{k}"]][0] < self.mu for k in (2, 3, 4)}
+            ready[3] = ready[3] and 2 in found
+            changed = False
+            for k, detector in detectors.items():
+                if k not in found and detector.update(t, estimates[k], ready[k]):
+                    found[k] = t
+                    changed = True
+            if 2 in found and 3 in found and 4 not in detectors:
+                detectors[4] = _Settling(tol, window, start=t)
+                changed = True
+            return changed
+
+        t, end, k = 0.0, times[-1], 1
+        while t < end:
+            solution = solve(t, min(t + chunk, end), s)
+            t_stop, switched = solution.t[-1], solution.status == 1
+            while k * check_step <= t_stop + 1e-12:
+                if check(k * check_step, solution.sol(k * check_step)):
+                    t_stop, switched = k * check_step, False
+                    solution = solve(t, t_stop, s)              # again, ending exactly at the check time
+                    k += 1
+                    break
+                k += 1
+            self._record_between(out, times, solution, t, t_stop)
+            s, t = solution.y[:, -1].copy(), t_stop
+            if switched:
+                self.adapt[0] = False
+            for stage in (2, 3):
+                if stage in found:
+                    self.adapt[stage - 1] = False
+            if 4 in detectors and not self.stage4:
                 self._start_stage4(s)
-            elif action is not None:
-                self.adapt[action] = False
+            if 4 in found:
+                self.adapt[3] = False
+        out["stage_times"] = np.array([found.get(k, np.nan) for k in (2, 3, 4)])
         return out
+
+    def _record_between(self, out, times, solution, t0, t1):
+        for i in np.nonzero((times >= t0) & (times <= t1))[0]:
+            self._record(out, i, times[i], solution.sol(times[i]))
 
     def _start_stage4(self, s):
         theta = H @ self.xi0_hat(s)
@@ -330,10 +365,29 @@ def place_output_gain_for(A_theta, poles):
     return place_output_gain(A_theta, poles)
 
 
-def simulate(times, stop_times=DEFAULT_STOP_TIMES, rtol=1e-10, atol=1e-12, **case):
-    """Reference outputs at ``times`` for the paper's plant with ``case`` overrides."""
+class _Settling:
+    """The identification test of one stage (see the module docstring)."""
+
+    def __init__(self, tol: float, window: float, start: float = 0.0):
+        self.tol, self.window = tol, window
+        self.reference, self.since = None, start
+
+    def update(self, t: float, estimate, ready: bool) -> bool:
+        """Feed the estimate at check time ``t``; True once the stage is identified."""
+        estimate = np.array(estimate, dtype=float)
+        moved = self.reference is None or \
+            np.max(np.abs(estimate - self.reference)) > self.tol * (1.0 + np.max(np.abs(self.reference)))
+        if not ready or moved:
+            self.reference, self.since = estimate, t
+            return False
+        return t - self.since >= self.window
+
+
+def simulate(times, rtol=1e-10, atol=1e-12, **case):
+    """Reference outputs at ``times`` for the paper's plant with ``case`` overrides; ``stage_times``
+    holds the times at which the reference found stages 2, 3 and 4 identified."""
     parameters = {**PAPER, **TUNING, **case}
-    return Reference(**parameters).simulate(times, stop_times, rtol, atol)
+    return Reference(**parameters).simulate(times, rtol, atol)
 
 
 COLUMNS = ["plant.x[1]", "plant.x[2]", "observer.x_tilde0_hat[1]", "observer.x_tilde0_hat[2]",
@@ -341,13 +395,14 @@ COLUMNS = ["plant.x[1]", "plant.x[2]", "observer.x_tilde0_hat[1]", "observer.x_t
            "observer.x_hat[1]", "observer.x_hat[2]"]
 
 
-def write_csv(path, T=20.0, grid=0.01, stop_times=DEFAULT_STOP_TIMES):
+def write_csv(path, T=20.0, grid=0.01):
     times = np.round(np.arange(0.0, T + grid / 2, grid), 10)
-    out = simulate(times, stop_times)
+    out = simulate(times)
     data = np.column_stack([times, out["x"], out["x_tilde0_hat"], out["xi0_hat"], out["omega_hat"], out["f_hat"],
                             out["x_hat"]])
     header = ",".join(["time"] + COLUMNS)
     np.savetxt(path, data, delimiter=",", header=header, comments="", fmt="%.17g")
+    return out["stage_times"]
 
 
 def _main(argv):  # pragma: no cover - prints the numbers of the docs, writes the scenario reference
@@ -355,13 +410,14 @@ def _main(argv):  # pragma: no cover - prints the numbers of the docs, writes th
     if "--write" in argv:
         path = argv[argv.index("--write") + 1]
         start = time.perf_counter()
-        write_csv(path)
-        print(f"wrote {path} in {time.perf_counter() - start:.1f} s")
+        stage_times = write_csv(path)
+        print(f"wrote {path} in {time.perf_counter() - start:.1f} s; stages 2, 3, 4 identified at {stage_times}")
         return
     times = np.round(np.arange(0.0, 20.0 + 1e-9, 0.01), 10)
     start = time.perf_counter()
     out = simulate(times)
     print(f"Radau reference, 20 s: {time.perf_counter() - start:.1f} s wall")
+    print("stages 2, 3, 4 identified at", out["stage_times"])
     last = times >= 16.0
     f_true = PAPER["amplitude"] * np.sin(PAPER["omega"] * times + PAPER["phase"])
     print("omega error last 20 %:", np.abs(out["omega_hat"][last, 0] - PAPER["omega"]).max())

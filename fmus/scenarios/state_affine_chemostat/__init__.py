@@ -77,13 +77,22 @@ def definitions():
 
 
 def summarize(result: Result) -> Summary:
-    return common.summarize(result, REFERENCE, time_unit="h")
+    return common.summarize(result, REFERENCE)
 
 
-def plot(result: Result, path: Path) -> None:
-    common.plot(result, path, "paper 004: chemostat with unknown feed concentration, substrate measured",
-                ["biomass X", "substrate S"], ["S_in"], time_unit="h")
+def plot(result: Result, path: Path) -> list[Path]:
+    return common.plot(result, path, "paper 004: chemostat with unknown feed concentration, substrate measured",
+                ["biomass X", "substrate S"], ["S_in"])
 
+
+CLAIM = (
+        "Paper 004 gives no numerical example; its claims are those of the pendulum scenario "
+        "(finite-time parameters, exponential state convergence when Delta is not square integrable). "
+        "The plant here is our choice (docs/paper004.md): a chemostat with Monod kinetics, time in "
+        "hours, the substrate S measured, the biomass X and the feed concentration S_in = 10 g/L "
+        "unknown, dilution rate D = 0.25 + 0.1 sin(0.5 t) + 0.05 sin(1.3 t) 1/h (Statement 1, "
+        "time-varying Lambda). Delta decays (washout), so the excitation is only on an interval. The "
+        "independent monolithic solution: S_in within 1e-4 from 1.63 h, state from 3.92 h.")
 
 SCENARIO = Scenario(
     name="state-affine-chemostat",
@@ -103,4 +112,5 @@ SCENARIO = Scenario(
     summarize=summarize,
     plot=plot,
     not_adaptive=common.NOT_ADAPTIVE,
+    claim=CLAIM,
 )

@@ -91,10 +91,20 @@ def summarize(result: Result) -> Summary:
     return common.summarize(result, REFERENCE)
 
 
-def plot(result: Result, path: Path) -> None:
-    common.plot(result, path, "paper 004: pendulum with unknown gravity a and friction b, angle measured",
+def plot(result: Result, path: Path) -> list[Path]:
+    return common.plot(result, path, "paper 004: pendulum with unknown gravity a and friction b, angle measured",
                 ["angle phi", "velocity omega"], ["b", "a"])
 
+
+CLAIM = (
+        "Paper 004 (DREM observers for plants reducible to a state-affine form) gives no numerical "
+        "example. It claims that the unknown parameters are found in finite time once the mixed "
+        "regressor Delta has been large enough, and that the state estimate converges exponentially "
+        "when Delta is not square integrable (Statement 3). The plant here is our choice "
+        "(docs/paper004.md): a pendulum phi'' = -a sin(phi) - b phi' + u with unknown gravity term "
+        "a = 9.81 1/s2 and friction b = 0.5 1/s, the angle measured, u = 3 sin(1.3 t) + 4 sin(4.7 t) "
+        "(Statement 2). The independent monolithic solution: parameters within 1e-4 from 1.35 s, "
+        "state from 2.85 s.")
 
 SCENARIO = Scenario(
     name="state-affine-pendulum",
@@ -112,4 +122,5 @@ SCENARIO = Scenario(
     summarize=summarize,
     plot=plot,
     not_adaptive=common.NOT_ADAPTIVE,
+    claim=CLAIM,
 )

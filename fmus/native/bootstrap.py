@@ -1,0 +1,57 @@
+"""Load an FMU's slave class from the code bundled in that FMU (copied to ``resources/obsfmu_bootstrap.py``).
+
+The builder relocates the code an FMU bundles under a package named after the hash of that
+code (``resources/_obsfmu_<hash>/``, see :mod:`fmus.bundle`).  The FMU's binary (``bridge.c``)
+runs this file with :func:`runpy.run_path` at every instantiation and calls
+:func:`load_slave_class`: the package is imported from its own folder -- nothing is added to
+``sys.path`` -- so every FMU runs its own code, whatever else the process has imported.
+
+FMUs with the same code hash share the package (their code is identical).  When another
+extraction of the same code appears (fmpy deletes its temporary folder after a run), its folders
+join the ``__path__`` of the package and of every subpackage already imported (vanished folders
+are dropped), so modules imported lazily later are still found.
+"""
+
+import importlib
+import importlib.util
+import os
+import sys
+
+
+def load_slave_class(resources: str, package: str, module: str, name: str) -> type:
+    """Import ``<package>.<module>`` from ``<resources>/<package>`` and return its class ``name``."""
+    directory = os.path.join(resources, package)
+    bundle = sys.modules.get(package)
+    if bundle is None:
+        spec = importlib.util.spec_from_file_location(package, os.path.join(directory, "__init__.py"),
+                                                      submodule_search_locations=[directory])
+        bundle = importlib.util.module_from_spec(spec)
+        sys.modules[package] = bundle
+        try:
+            spec.loader.exec_module(bundle)
+        except BaseException:
+            del sys.modules[package]
+            raise
+    elif directory not in bundle.__path__:
+        _add_extraction(package, directory)
+    try:
+        slave = importlib.import_module(f"{package}.{module}")
+    except ImportError as exc:
+        if exc.name and not exc.name.startswith(package):
+            version = ".".join(map(str, sys.version_info[:2]))
+            raise ImportError(f"{exc}: this FMU runs on the Python {version} at {sys.executable}, which must have "
+                              f"numpy and scipy; install them there, or set OBSFMU_PYTHON to a Python {version} "
+                              "installation or virtual environment that has them") from exc
+        raise
+    return getattr(slave, name)
+
+
+def _add_extraction(package: str, directory: str) -> None:
+    """Search ``directory`` (another extraction of the same code) in every imported (sub)package."""
+    for name, module in list(sys.modules.items()):
+        path = getattr(module, "__path__", None)
+        if path is None or not (name == package or name.startswith(package + ".")):
+            continue
+        folder = os.path.join(directory, *name.split(".")[1:])
+        if folder not in path:
+            path[:] = [d for d in path if os.path.isdir(d)] + [folder]

@@ -1,0 +1,615 @@
+/*
+ * The BRIDGE of an obsfmu FMU: the FMI 2.0 calls -> the generic Python slave (fmus/slave.py,
+ * a pythonfmu Fmi2Slave), compiled against one Python version's headers.
+ *
+ * It is loaded by the LOADER (loader.c) with RTLD_LOCAL once libpython's symbols are global
+ * (in a Python host, or after the loader has loaded libpython); it has no NEEDED entry on
+ * libpython and exports only obsfmu_bridge(), the function table of obsfmu_native.h.  The
+ * loader checks the call sequence (FMI state machine) before anything gets here.
+ *
+ * What this part guarantees:
+ *   - fmi2SetRealInputDerivatives (canInterpolateInputs = true),
+ *   - fmi2Get/Set/Free/(De)SerializeFMUstate through the slave's methods,
+ *   - status rule: a call returns the worst of its own result and of the levels the slave
+ *     logged during the call, capped at fmi2Error (never fmi2Fatal); a Python exception is
+ *     fmi2Error with its message logged; do_step() returning False is fmi2Discard,
+ *   - refused or failed: an exception of the slave class's `Refused` type means the slave refused
+ *     the call and changed nothing; refused() tells the loader so, which then keeps the instance's
+ *     state (any other exception, or an error-level message, is a failure: docs/faults.md),
+ *   - FMU states hold the loader's fields (ObsfmuMachine): get_fmu_state(loader) stores them,
+ *     loader_fields(state) gives them back; the serialized form is the slave's, one format,
+ *   - the slave's code is the FMU's own: the bundled package resources/<package>/ (named after
+ *     the hash of the bundled code) is imported by obsfmu_bootstrap.py, never via sys.path.
+ *
+ * Python side (methods of the slave instance):
+ *   setup_experiment(start, stop|None, tolerance|None), enter_initialization_mode(),
+ *   exit_initialization_mode(), terminate(), do_step(t, h) -> bool,
+ *   get_real/get_integer/get_boolean/get_string(vrs) -> list,
+ *   set_real/set_integer/set_boolean/set_string(vrs, values),
+ *   set_real_input_derivatives(vrs, orders, values), clear_input_derivatives(vrs),
+ *   get_fmu_state(loader={"fmi": 2|3, "state": name}) -> obj, set_fmu_state(obj),
+ *   loader_fields(obj) -> (loader dict or None, time, initialized),
+ *   serialize_fmu_state(obj) -> bytes, deserialize_fmu_state(bytes) -> obj,
+ *   log_queue: list of messages with .status, .category, .msg (drained after each call);
+ *   class attribute Refused: the exception type of refused calls.
+ */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+
+#include "obsfmu_native.h"
+
+typedef struct {
+    PyObject *slave_class;
+    PyObject *refusal;  /* slave_class.Refused: the exception of a refused call (NULL: none) */
+    PyObject *instance;
+    PyObject *strings; /* keeps the strings returned by fmi2GetString alive */
+    fmi2CallbackFunctions callbacks;
+    char *name;
+    char *resources;
+    int visible;
+    int logging_on;
+    int refused;        /* the last call returned fmi2Error because the slave refused it */
+} Component;
+
+/* ------------------------------------------------------------------ logging */
+
+static void log_message(Component *c, fmi2Status status, const char *category, const char *message)
+{
+    if (status == fmi2OK && !c->logging_on) return;
+    obsfmu_emit(&c->callbacks, c->name, status, category, message);
+}
+
+/* Forward the slave's queued log messages to the importer; returns the worst level, capped at
+ * fmi2Error. */
+static fmi2Status drain_log(Component *c)
+{
+    fmi2Status worst = fmi2OK;
+    PyObject *queue = PyObject_GetAttrString(c->instance, "log_queue");
+    if (queue == NULL || !PyList_Check(queue)) {
+        PyErr_Clear();
+        Py_XDECREF(queue);
+        return worst;
+    }
+    Py_ssize_t size = PyList_Size(queue);
+    for (Py_ssize_t i = 0; i < size; i++) {
+        PyObject *item = PyList_GetItem(queue, i); /* borrowed */
+        PyObject *status = PyObject_GetAttrString(item, "status");
+        PyObject *category = PyObject_GetAttrString(item, "category");
+        PyObject *msg = PyObject_GetAttrString(item, "msg");
+        long level = status ? PyLong_AsLong(status) : 0;
+        const char *category_text = (category && PyUnicode_Check(category)) ? PyUnicode_AsUTF8(category) : NULL;
+        const char *msg_text = (msg && PyUnicode_Check(msg)) ? PyUnicode_AsUTF8(msg) : "";
+        if (level < fmi2OK || level > fmi2Fatal) level = fmi2Error;
+        if (level == fmi2Fatal) level = fmi2Error; /* the slave cannot corrupt other instances */
+        log_message(c, (fmi2Status)level, category_text ? category_text : obsfmu_category((fmi2Status)level),
+                    msg_text ? msg_text : "");
+        if (level > worst) worst = (fmi2Status)level;
+        Py_XDECREF(status);
+        Py_XDECREF(category);
+        Py_XDECREF(msg);
+        PyErr_Clear();
+    }
+    PyList_SetSlice(queue, 0, size, NULL);
+    Py_DECREF(queue);
+    return worst;
+}
+
+/* Log the pending Python exception as fmi2Error and clear it; a refusal (the slave's Refused) is
+ * logged with its message alone and marked in c->refused, anything else names the exception type. */
+static fmi2Status python_error(Component *c, const char *where)
+{
+    PyObject *type, *value, *traceback;
+    char message[4096];
+    PyErr_Fetch(&type, &value, &traceback);
+    PyErr_NormalizeException(&type, &value, &traceback);
+    c->refused = c->refusal != NULL && type != NULL && PyErr_GivenExceptionMatches(type, c->refusal);
+    const char *type_name = type ? ((PyTypeObject *)type)->tp_name : "error";
+    PyObject *text = value ? PyObject_Str(value) : NULL;
+    const char *detail = text ? PyUnicode_AsUTF8(text) : "unknown error";
+    if (c->refused)
+        snprintf(message, sizeof message, "%s refused: %s", where, detail ? detail : "");
+    else
+        snprintf(message, sizeof message, "%s: %s: %s", where, type_name, detail ? detail : "");
+    Py_XDECREF(text);
+    Py_XDECREF(type);
+    Py_XDECREF(value);
+    Py_XDECREF(traceback);
+    PyErr_Clear();
+    if (c->instance != NULL) drain_log(c);
+    log_message(c, fmi2Error, "logStatusError", message);
+    return fmi2Error;
+}
+
+/* ------------------------------------------------------------------ helpers */
+
+static PyObject *reference_list(const fmi2ValueReference vr[], size_t nvr)
+{
+    PyObject *list = PyList_New((Py_ssize_t)nvr);
+    for (size_t i = 0; list && i < nvr; i++) {
+        PyList_SET_ITEM(list, (Py_ssize_t)i, PyLong_FromUnsignedLong(vr[i]));
+    }
+    return list;
+}
+
+/* Call slave.<method>(*args); steals args; result in *out (may be NULL). */
+static fmi2Status call(Component *c, const char *method, PyObject *args, PyObject **out)
+{
+    if (out) *out = NULL;
+    if (args == NULL) return python_error(c, method);
+    PyObject *function = PyObject_GetAttrString(c->instance, method);
+    if (function == NULL) {
+        Py_DECREF(args);
+        return python_error(c, method);
+    }
+    PyObject *result = PyObject_CallObject(function, args);
+    Py_DECREF(function);
+    Py_DECREF(args);
+    if (result == NULL) return python_error(c, method);
+    fmi2Status status = drain_log(c);
+    if (out) *out = result; else Py_DECREF(result);
+    return status;
+}
+
+#define WITH_GIL(body)                                  \
+    PyGILState_STATE gil_ = PyGILState_Ensure();        \
+    fmi2Status status_ = fmi2OK;                        \
+    body;                                               \
+    PyGILState_Release(gil_);                           \
+    return status_;
+
+/* every entry point: the component, and no refusal yet for this call */
+#define COMPONENT Component *c = (Component *)component; if (c == NULL) return fmi2Error; c->refused = 0;
+
+static char *copy_string(const char *text)
+{
+    size_t n = strlen(text) + 1;
+    char *copy = malloc(n);
+    if (copy) memcpy(copy, text, n);
+    return copy;
+}
+
+static PyObject *create_instance(Component *c)
+{
+    PyObject *kwargs = Py_BuildValue("{s:s,s:s,s:O,s:O}", "instance_name", c->name, "resources", c->resources,
+                                     "visible", c->visible ? Py_True : Py_False, "logger", Py_None);
+    if (kwargs == NULL) return NULL;
+    PyObject *args = PyTuple_New(0);
+    PyObject *instance = args ? PyObject_Call(c->slave_class, args, kwargs) : NULL;
+    Py_XDECREF(args);
+    Py_DECREF(kwargs);
+    return instance;
+}
+
+/* The slave class of the FMU, from its own bundled package (resources/obsfmu_bootstrap.py). */
+static PyObject *slave_class(Component *c, const char *record)
+{
+    char package[256], module[256], name[256], bootstrap[4096];
+    obsfmu_record_value(record, "package", package, sizeof package);
+    obsfmu_record_value(record, "slave_module", module, sizeof module);
+    obsfmu_record_value(record, "slave_class", name, sizeof name);
+    snprintf(bootstrap, sizeof bootstrap, "%s/obsfmu_bootstrap.py", c->resources);
+    PyObject *runpy = PyImport_ImportModule("runpy");
+    PyObject *namespace = runpy ? PyObject_CallMethod(runpy, "run_path", "sOs", bootstrap, Py_None, "obsfmu_bootstrap") : NULL;
+    PyObject *load = namespace ? PyDict_GetItemString(namespace, "load_slave_class") : NULL; /* borrowed */
+    PyObject *cls = load ? PyObject_CallFunction(load, "ssss", c->resources, package, module, name) : NULL;
+    if (namespace && load == NULL && !PyErr_Occurred())
+        PyErr_Format(PyExc_RuntimeError, "%s defines no load_slave_class", bootstrap);
+    Py_XDECREF(namespace);
+    Py_XDECREF(runpy);
+    return cls;
+}
+
+static void free_component(Component *c)
+{
+    if (c == NULL) return;
+    Py_XDECREF(c->instance);
+    Py_XDECREF(c->refusal);
+    Py_XDECREF(c->slave_class);
+    Py_XDECREF(c->strings);
+    free(c->name);
+    free(c->resources);
+    free(c);
+}
+
+/* ------------------------------------------------------------------ start-up */
+
+static int start(const char *program, char *message, size_t size)
+{
+    PyConfig config;
+    PyConfig_InitPythonConfig(&config);
+    config.install_signal_handlers = 0; /* the host owns the signals */
+    config.parse_argv = 0;
+    config.use_environment = 0;         /* PYTHONHOME/PYTHONPATH of the host are not ours */
+    config.configure_c_stdio = 0;
+    config.pathconfig_warnings = 0;     /* failures are reported through the FMI logger */
+    PyStatus status = PyConfig_SetBytesString(&config, &config.program_name, program);
+    if (!PyStatus_Exception(status)) status = Py_InitializeFromConfig(&config);
+    PyConfig_Clear(&config);
+    if (PyStatus_Exception(status)) {
+        snprintf(message, size, "starting Python from %s failed: %s%s%s", program, status.func ? status.func : "",
+                 status.func ? ": " : "", status.err_msg ? status.err_msg : "unknown error");
+        return -1;
+    }
+    PyEval_SaveThread(); /* every call takes the GIL with PyGILState_Ensure; never finalized */
+    return 0;
+}
+
+/* ------------------------------------------------------------------ FMI API */
+
+static fmi2Component instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2String fmuGUID,
+                                 fmi2String fmuResourceLocation, const fmi2CallbackFunctions *functions,
+                                 fmi2Boolean visible, fmi2Boolean loggingOn)
+{
+    (void)fmuType;
+    (void)fmuGUID; /* checked by the loader */
+    Component *c = calloc(1, sizeof(Component));
+    if (c == NULL) return NULL;
+    if (functions) c->callbacks = *functions;
+    c->name = copy_string(instanceName ? instanceName : "");
+    c->resources = obsfmu_resource_path(fmuResourceLocation);
+    c->visible = visible;
+    c->logging_on = loggingOn;
+    char *record = c->resources ? obsfmu_read_record(c->resources) : NULL;
+    if (c->name == NULL || record == NULL) {
+        free(record);
+        free_component(c);
+        return NULL;
+    }
+
+    PyGILState_STATE gil = PyGILState_Ensure();
+    c->slave_class = slave_class(c, record);
+    if (c->slave_class != NULL) {
+        c->refusal = PyObject_GetAttrString(c->slave_class, "Refused");
+        if (c->refusal == NULL || !PyExceptionClass_Check(c->refusal)) { /* a slave without refusals */
+            PyErr_Clear();
+            Py_CLEAR(c->refusal);
+        }
+        c->instance = create_instance(c);
+    }
+    if (c->instance == NULL) {
+        python_error(c, "fmi2Instantiate");
+        free_component(c);
+        c = NULL;
+    } else {
+        drain_log(c);
+    }
+    PyGILState_Release(gil);
+    free(record);
+    return c;
+}
+
+static void free_instance(fmi2Component component)
+{
+    Component *c = (Component *)component;
+    if (c == NULL) return;
+    PyGILState_STATE gil = PyGILState_Ensure();
+    free_component(c);
+    PyGILState_Release(gil);
+}
+
+static fmi2Status set_debug_logging(fmi2Component component, fmi2Boolean loggingOn, size_t nCategories,
+                                    const fmi2String categories[])
+{
+    (void)nCategories;
+    (void)categories;
+    COMPONENT
+    c->logging_on = loggingOn;
+    return fmi2OK;
+}
+
+static fmi2Status setup_experiment(fmi2Component component, fmi2Boolean toleranceDefined, fmi2Real tolerance,
+                                   fmi2Real startTime, fmi2Boolean stopTimeDefined, fmi2Real stopTime)
+{
+    COMPONENT
+    WITH_GIL({
+        PyObject *tol = toleranceDefined ? PyFloat_FromDouble(tolerance) : (Py_INCREF(Py_None), Py_None);
+        PyObject *stop = stopTimeDefined ? PyFloat_FromDouble(stopTime) : (Py_INCREF(Py_None), Py_None);
+        status_ = call(c, "setup_experiment", Py_BuildValue("(dNN)", startTime, stop, tol), NULL);
+    })
+}
+
+#define SIMPLE_CALL(function, method)                                   \
+    static fmi2Status function(fmi2Component component)                 \
+    {                                                                   \
+        COMPONENT                                                       \
+        WITH_GIL(status_ = call(c, method, PyTuple_New(0), NULL))       \
+    }
+
+SIMPLE_CALL(enter_initialization_mode, "enter_initialization_mode")
+SIMPLE_CALL(exit_initialization_mode, "exit_initialization_mode")
+SIMPLE_CALL(terminate, "terminate")
+
+static fmi2Status reset(fmi2Component component)
+{
+    COMPONENT
+    WITH_GIL({
+        PyObject *fresh = create_instance(c);
+        if (fresh == NULL) {
+            status_ = python_error(c, "fmi2Reset");
+        } else {
+            Py_DECREF(c->instance);
+            c->instance = fresh;
+            status_ = drain_log(c);
+        }
+    })
+}
+
+/* ---- getters */
+
+static fmi2Status get_values(Component *c, const char *method, const fmi2ValueReference vr[], size_t nvr,
+                             PyObject **result)
+{
+    fmi2Status status = call(c, method, Py_BuildValue("(N)", reference_list(vr, nvr)), result);
+    if (*result == NULL) return status;
+    if (!PyList_Check(*result) || (size_t)PyList_Size(*result) != nvr) {
+        Py_DECREF(*result);
+        *result = NULL;
+        log_message(c, fmi2Error, "logStatusError", "slave returned a list of the wrong length");
+        return fmi2Error;
+    }
+    return status;
+}
+
+static fmi2Status get_real(fmi2Component component, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[])
+{
+    COMPONENT
+    WITH_GIL({
+        PyObject *values = NULL;
+        status_ = get_values(c, "get_real", vr, nvr, &values);
+        for (size_t i = 0; values && i < nvr; i++) value[i] = PyFloat_AsDouble(PyList_GET_ITEM(values, i));
+        Py_XDECREF(values);
+        if (PyErr_Occurred()) status_ = python_error(c, "fmi2GetReal");
+    })
+}
+
+static fmi2Status get_integer(fmi2Component component, const fmi2ValueReference vr[], size_t nvr,
+                              fmi2Integer value[])
+{
+    COMPONENT
+    WITH_GIL({
+        PyObject *values = NULL;
+        status_ = get_values(c, "get_integer", vr, nvr, &values);
+        for (size_t i = 0; values && i < nvr; i++) value[i] = (fmi2Integer)PyLong_AsLong(PyList_GET_ITEM(values, i));
+        Py_XDECREF(values);
+        if (PyErr_Occurred()) status_ = python_error(c, "fmi2GetInteger");
+    })
+}
+
+static fmi2Status get_boolean(fmi2Component component, const fmi2ValueReference vr[], size_t nvr,
+                              fmi2Boolean value[])
+{
+    COMPONENT
+    WITH_GIL({
+        PyObject *values = NULL;
+        status_ = get_values(c, "get_boolean", vr, nvr, &values);
+        for (size_t i = 0; values && i < nvr; i++) value[i] = PyObject_IsTrue(PyList_GET_ITEM(values, i)) == 1;
+        Py_XDECREF(values);
+    })
+}
+
+static fmi2Status get_string(fmi2Component component, const fmi2ValueReference vr[], size_t nvr,
+                             fmi2String value[])
+{
+    COMPONENT
+    WITH_GIL({
+        PyObject *values = NULL;
+        status_ = get_values(c, "get_string", vr, nvr, &values);
+        if (values) {
+            Py_XDECREF(c->strings);
+            c->strings = values; /* keeps the UTF-8 buffers alive until the next call */
+            for (size_t i = 0; i < nvr; i++) {
+                const char *text = PyUnicode_AsUTF8(PyList_GET_ITEM(values, i));
+                value[i] = text ? text : "";
+            }
+            PyErr_Clear();
+        }
+    })
+}
+
+/* ---- setters */
+
+static fmi2Status set_values(Component *c, const char *method, const fmi2ValueReference vr[], size_t nvr,
+                             PyObject *values)
+{
+    if (values == NULL) return python_error(c, method);
+    return call(c, method, Py_BuildValue("(NN)", reference_list(vr, nvr), values), NULL);
+}
+
+static PyObject *string_object(fmi2String text) { return PyUnicode_FromString(text ? text : ""); }
+
+#define SETTER(function, method, type, to_python)                                                      \
+    static fmi2Status function(fmi2Component component, const fmi2ValueReference vr[], size_t nvr,     \
+                               const type value[])                                                     \
+    {                                                                                                  \
+        COMPONENT                                                                                      \
+        WITH_GIL({                                                                                     \
+            PyObject *values = PyList_New((Py_ssize_t)nvr);                                            \
+            for (size_t i = 0; values && i < nvr; i++) PyList_SET_ITEM(values, (Py_ssize_t)i, to_python(value[i])); \
+            status_ = set_values(c, method, vr, nvr, values);                                          \
+        })                                                                                             \
+    }
+
+SETTER(set_real, "set_real", fmi2Real, PyFloat_FromDouble)
+SETTER(set_integer, "set_integer", fmi2Integer, PyLong_FromLong)
+SETTER(set_boolean, "set_boolean", fmi2Boolean, PyBool_FromLong)
+SETTER(set_string, "set_string", fmi2String, string_object)
+
+/* ---- FMU state: the slave's, holding the loader's fields (ObsfmuMachine) */
+
+static fmi2Status get_fmu_state(fmi2Component component, const ObsfmuMachine *machine, fmi2FMUstate *state)
+{
+    COMPONENT
+    if (machine == NULL || state == NULL) return fmi2Error;
+    WITH_GIL({
+        PyObject *snapshot = NULL;
+        PyObject *loader = Py_BuildValue("{s:i,s:s}", "fmi", machine->fmi, "state", machine->state);
+        status_ = call(c, "get_fmu_state", loader ? Py_BuildValue("(N)", loader) : NULL, &snapshot);
+        if (snapshot) {
+            Py_XDECREF((PyObject *)*state);
+            *state = snapshot;
+        }
+    })
+}
+
+/* slave.loader_fields(state) -> (None or {"fmi": int, "state": str}, time, initialized) into *machine
+ * (machine->fmi = 0 when the state holds no loader fields); with the GIL held. */
+static fmi2Status read_machine(Component *c, PyObject *state, ObsfmuMachine *machine)
+{
+    PyObject *fields = NULL, *loader = NULL;
+    memset(machine, 0, sizeof *machine);
+    fmi2Status status = call(c, "loader_fields", Py_BuildValue("(O)", state), &fields);
+    if (fields && PyArg_ParseTuple(fields, "Odp", &loader, &machine->time, &machine->initialized)
+        && PyDict_Check(loader)) {
+        PyObject *fmi = PyDict_GetItemString(loader, "fmi"); /* borrowed */
+        PyObject *name = PyDict_GetItemString(loader, "state");
+        const char *text = name && PyUnicode_Check(name) ? PyUnicode_AsUTF8(name) : NULL;
+        if (fmi && PyLong_Check(fmi) && text && strlen(text) < sizeof machine->state) {
+            machine->fmi = (int)PyLong_AsLong(fmi);
+            strcpy(machine->state, text);
+        }
+    }
+    Py_XDECREF(fields);
+    if (PyErr_Occurred()) status = python_error(c, "loader_fields");
+    return status;
+}
+
+static fmi2Status machine_of(fmi2Component component, fmi2FMUstate state, ObsfmuMachine *machine)
+{
+    COMPONENT
+    if (state == NULL || machine == NULL) return fmi2Error;
+    WITH_GIL(status_ = read_machine(c, (PyObject *)state, machine))
+}
+
+static fmi2Status set_fmu_state(fmi2Component component, fmi2FMUstate state)
+{
+    COMPONENT
+    if (state == NULL) return fmi2Error;
+    WITH_GIL(status_ = call(c, "set_fmu_state", Py_BuildValue("(O)", (PyObject *)state), NULL))
+}
+
+static fmi2Status free_fmu_state(fmi2Component component, fmi2FMUstate *state)
+{
+    COMPONENT
+    if (state == NULL || *state == NULL) return fmi2OK;
+    WITH_GIL({
+        Py_DECREF((PyObject *)*state);
+        *state = NULL;
+    })
+}
+
+static fmi2Status serialized(Component *c, fmi2FMUstate state, PyObject **bytes)
+{
+    fmi2Status status = call(c, "serialize_fmu_state", Py_BuildValue("(O)", (PyObject *)state), bytes);
+    if (*bytes && !PyBytes_Check(*bytes)) {
+        Py_DECREF(*bytes);
+        *bytes = NULL;
+        log_message(c, fmi2Error, "logStatusError", "serialize_fmu_state did not return bytes");
+        return fmi2Error;
+    }
+    return status;
+}
+
+static fmi2Status serialized_fmu_state_size(fmi2Component component, fmi2FMUstate state, size_t *size)
+{
+    COMPONENT
+    if (state == NULL) return fmi2Error;
+    WITH_GIL({
+        PyObject *bytes = NULL;
+        status_ = serialized(c, state, &bytes);
+        if (bytes) *size = (size_t)PyBytes_GET_SIZE(bytes);
+        Py_XDECREF(bytes);
+    })
+}
+
+static fmi2Status serialize_fmu_state(fmi2Component component, fmi2FMUstate state, fmi2Byte buffer[],
+                                      size_t size)
+{
+    COMPONENT
+    if (state == NULL) return fmi2Error;
+    WITH_GIL({
+        PyObject *bytes = NULL;
+        status_ = serialized(c, state, &bytes);
+        if (bytes) {
+            if ((size_t)PyBytes_GET_SIZE(bytes) > size) {
+                log_message(c, fmi2Error, "logStatusError", "fmi2SerializeFMUstate: buffer too small");
+                status_ = fmi2Error;
+            } else {
+                memcpy(buffer, PyBytes_AS_STRING(bytes), (size_t)PyBytes_GET_SIZE(bytes));
+            }
+            Py_DECREF(bytes);
+        }
+    })
+}
+
+static fmi2Status deserialize_fmu_state(fmi2Component component, const fmi2Byte serializedState[], size_t size,
+                                        fmi2FMUstate *state)
+{
+    COMPONENT
+    WITH_GIL({
+        PyObject *snapshot = NULL;
+        status_ = call(c, "deserialize_fmu_state",
+                       Py_BuildValue("(N)", PyBytes_FromStringAndSize(serializedState, (Py_ssize_t)size)), &snapshot);
+        if (snapshot) {
+            Py_XDECREF((PyObject *)*state);
+            *state = snapshot;
+        }
+    })
+}
+
+/* ---- inputs and stepping */
+
+static fmi2Status set_real_input_derivatives(fmi2Component component, const fmi2ValueReference vr[], size_t nvr,
+                                             const fmi2Integer order[], const fmi2Real value[])
+{
+    COMPONENT
+    WITH_GIL({
+        PyObject *orders = PyList_New((Py_ssize_t)nvr);
+        PyObject *values = PyList_New((Py_ssize_t)nvr);
+        for (size_t i = 0; orders && values && i < nvr; i++) {
+            PyList_SET_ITEM(orders, (Py_ssize_t)i, PyLong_FromLong(order[i]));
+            PyList_SET_ITEM(values, (Py_ssize_t)i, PyFloat_FromDouble(value[i]));
+        }
+        status_ = call(c, "set_real_input_derivatives",
+                       Py_BuildValue("(NNN)", reference_list(vr, nvr), orders, values), NULL);
+    })
+}
+
+static fmi2Status clear_input_derivatives(fmi2Component component, const fmi2ValueReference vr[], size_t nvr)
+{
+    COMPONENT
+    WITH_GIL(status_ = call(c, "clear_input_derivatives", Py_BuildValue("(N)", reference_list(vr, nvr)), NULL))
+}
+
+static fmi2Status do_step(fmi2Component component, fmi2Real currentCommunicationPoint,
+                          fmi2Real communicationStepSize, fmi2Boolean noSetFMUStatePriorToCurrentPoint)
+{
+    (void)noSetFMUStatePriorToCurrentPoint;
+    COMPONENT
+    WITH_GIL({
+        PyObject *result = NULL;
+        status_ = call(c, "do_step", Py_BuildValue("(dd)", currentCommunicationPoint, communicationStepSize),
+                       &result);
+        if (result) {
+            if (PyObject_IsTrue(result) != 1 && status_ < fmi2Discard) status_ = fmi2Discard;
+            Py_DECREF(result);
+        }
+    })
+}
+
+static int refused(fmi2Component component)
+{
+    Component *c = (Component *)component;
+    return c != NULL && c->refused;
+}
+
+__attribute__((visibility("default"))) const ObsfmuBridge *obsfmu_bridge(void)
+{
+    static const ObsfmuBridge table = {
+        OBSFMU_BRIDGE_ABI, start, instantiate, free_instance, set_debug_logging, setup_experiment,
+        enter_initialization_mode, exit_initialization_mode, terminate, reset,
+        get_real, get_integer, get_boolean, get_string, set_real, set_integer, set_boolean, set_string,
+        get_fmu_state, machine_of, set_fmu_state, free_fmu_state, serialized_fmu_state_size, serialize_fmu_state,
+        deserialize_fmu_state, set_real_input_derivatives, clear_input_derivatives, do_step, refused,
+    };
+    return &table;
+}

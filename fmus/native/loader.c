@@ -1,0 +1,330 @@
+/*
+ * The FMI 2.0 LOADER: binaries/<platform>/<model>.so of every obsfmu FMI 2.0 FMU (details:
+ * docs/portability.md; the FMI 3.0 loader is loader_fmi3.c, what both share loader_common.h).
+ *
+ * Plain C, compiled without Python headers: it dlopens cleanly (RTLD_NOW) in any process.
+ *   1. It enforces the FMI 2.0 co-simulation state machine (the standard's table of allowed
+ *      calls per state, section 4.2.4) and checks the arguments of fmi2DoStep and
+ *      fmi2SetRealInputDerivatives.  A call it refuses returns fmi2Error, logs the call and the
+ *      reason, and changes nothing.  So does a call the slave refuses (fmi2Error, nothing changed:
+ *      bad FMU-state bytes, a parameter after initialization, ...).  A call that FAILS inside the
+ *      slave (fmi2Error: an unexpected exception, an error the slave logged) puts the instance in
+ *      the error state, left only by fmi2SetFMUstate, fmi2Reset or fmi2FreeInstance.  fmi2Discard
+ *      from fmi2DoStep leads to stepFailed (the standard's): fmi2SetFMUstate or fmi2Reset go on.
+ *   2. At the first instantiation it gets Python: the interpreter already running in the process
+ *      (fmpy, libcosimpy, ...: same major.minor version as the bridge required), or else
+ *      libpython of $OBSFMU_PYTHON (a Python prefix, a virtual environment or a python executable)
+ *      or of the Python recorded at build time, loaded RTLD_GLOBAL and started once per process,
+ *      never finalized (loader_common.h).
+ *   3. It loads the BRIDGE (bridge.c, RTLD_LOCAL) and forwards every call to its function table.
+ */
+#include "fmi2Functions.h"
+#include "loader_common.h"
+
+/* ------------------------------------------------------------------ state machine */
+
+/* stepInProgress and stepCanceled never occur: steps are synchronous (canRunAsynchronuously = false). */
+enum {
+    INSTANTIATED = 1,
+    INITIALIZATION_MODE = 2,
+    STEP_COMPLETE = 4,
+    STEP_FAILED = 8,
+    TERMINATED = 16,
+    ERROR = 32,
+};
+
+#define ANY_STATE (INSTANTIATED | INITIALIZATION_MODE | STEP_COMPLETE | STEP_FAILED | TERMINATED | ERROR)
+#define SETTABLE (INSTANTIATED | INITIALIZATION_MODE | STEP_COMPLETE)
+#define READABLE (INITIALIZATION_MODE | STEP_COMPLETE | STEP_FAILED | TERMINATED | ERROR)
+#define STEPPED (STEP_COMPLETE | STEP_FAILED | TERMINATED | ERROR)
+#define STATUS_QUERY (STEP_COMPLETE | STEP_FAILED | TERMINATED)
+#define NO_STATE 0
+
+static const char *state_name(unsigned state)
+{
+    switch (state) {
+    case INSTANTIATED: return "instantiated";
+    case INITIALIZATION_MODE: return "initializationMode";
+    case STEP_COMPLETE: return "stepComplete";
+    case STEP_FAILED: return "stepFailed";
+    case TERMINATED: return "terminated";
+    default: return "error";
+    }
+}
+
+static const Version FMI2 = {2, ANY_STATE, INSTANTIATED | INITIALIZATION_MODE, STEP_COMPLETE | STEP_FAILED | TERMINATED,
+                             ERROR, state_name, "fmi2"};
+
+typedef Core Instance;
+
+/* The instance, or fmi2Error when the call is not allowed in its state (nothing changes). */
+#define ENTER(call, allowed)                                                                      \
+    Instance *c = (Instance *)component;                                                          \
+    if (c == NULL) return fmi2Error;                                                              \
+    if (!(c->state & (allowed))) return refuse(c, "%s is not allowed in state %s", #call, state_name(c->state));
+
+/* ------------------------------------------------------------------ FMI API */
+
+const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
+const char *fmi2GetVersion(void) { return fmi2Version; }
+
+fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2String fmuGUID,
+                              fmi2String fmuResourceLocation, const fmi2CallbackFunctions *functions,
+                              fmi2Boolean visible, fmi2Boolean loggingOn)
+{
+    const char *name = instanceName ? instanceName : "";
+    char message[8192];
+    if (fmuType != fmi2CoSimulation) {
+        say(functions, name, fmi2Error, "fmi2Instantiate: this FMU supports co-simulation only");
+        return NULL;
+    }
+    if (fmuResourceLocation == NULL) {
+        say(functions, name, fmi2Error, "fmi2Instantiate: fmuResourceLocation is required");
+        return NULL;
+    }
+    char *resources = obsfmu_resource_path(fmuResourceLocation);
+    char *record = checked_record(functions, name, "fmi2Instantiate", resources, fmuResourceLocation, fmuGUID, "GUID");
+    Instance *c = NULL;
+    if (record == NULL) goto done;
+    const ObsfmuBridge *functions_of_bridge = get_bridge(resources, record, message, sizeof message);
+    if (functions_of_bridge == NULL) {
+        say(functions, name, fmi2Error, "fmi2Instantiate: %s", message);
+        goto done;
+    }
+    fmi2Component inner = functions_of_bridge->instantiate(instanceName, fmuType, fmuGUID, fmuResourceLocation,
+                                                           functions, visible, loggingOn);
+    if (inner == NULL) goto done; /* the bridge logged why */
+    c = calloc(1, sizeof(Instance));
+    if (c != NULL && functions) c->callbacks = *functions;
+    if (c == NULL || core_init(c, &FMI2, functions_of_bridge, inner, name, INSTANTIATED, resources) != 0) {
+        functions_of_bridge->freeInstance(inner);
+        if (c) core_free(c);
+        free(c);
+        c = NULL;
+        goto done;
+    }
+done:
+    free(record);
+    free(resources);
+    return c;
+}
+
+void fmi2FreeInstance(fmi2Component component)
+{
+    Instance *c = (Instance *)component;
+    if (c == NULL) return;
+    c->bridge->freeInstance(c->inner);
+    core_free(c);
+    free(c);
+}
+
+fmi2Status fmi2SetDebugLogging(fmi2Component component, fmi2Boolean loggingOn, size_t nCategories,
+                               const fmi2String categories[])
+{
+    ENTER(fmi2SetDebugLogging, ANY_STATE)
+    return after(c, c->bridge->setDebugLogging(c->inner, loggingOn, nCategories, categories));
+}
+
+fmi2Status fmi2SetupExperiment(fmi2Component component, fmi2Boolean toleranceDefined, fmi2Real tolerance,
+                               fmi2Real startTime, fmi2Boolean stopTimeDefined, fmi2Real stopTime)
+{
+    ENTER(fmi2SetupExperiment, INSTANTIATED)
+    if (!finite(startTime)) return refuse(c, "fmi2SetupExperiment: startTime %g is not finite", startTime);
+    fmi2Status status = c->bridge->setupExperiment(c->inner, toleranceDefined, tolerance, startTime,
+                                                   stopTimeDefined, stopTime);
+    if (status < fmi2Error) c->time = startTime;
+    return after(c, status);
+}
+
+fmi2Status fmi2EnterInitializationMode(fmi2Component component)
+{
+    ENTER(fmi2EnterInitializationMode, INSTANTIATED)
+    fmi2Status status = c->bridge->enterInitializationMode(c->inner);
+    if (status < fmi2Error) c->state = INITIALIZATION_MODE;
+    return after(c, status);
+}
+
+fmi2Status fmi2ExitInitializationMode(fmi2Component component)
+{
+    ENTER(fmi2ExitInitializationMode, INITIALIZATION_MODE)
+    fmi2Status status = c->bridge->exitInitializationMode(c->inner);
+    if (status < fmi2Error) c->state = STEP_COMPLETE;
+    return after(c, status);
+}
+
+fmi2Status fmi2Terminate(fmi2Component component)
+{
+    ENTER(fmi2Terminate, STEP_COMPLETE | STEP_FAILED)
+    fmi2Status status = c->bridge->terminate(c->inner);
+    if (status < fmi2Error) c->state = TERMINATED;
+    return after(c, status);
+}
+
+fmi2Status fmi2Reset(fmi2Component component)
+{
+    ENTER(fmi2Reset, ANY_STATE)
+    return core_reset(c, INSTANTIATED);
+}
+
+/* ---- values */
+
+#define ARRAYS(call, vr, nvr, value)                                                                   \
+    if ((nvr) > 0 && ((vr) == NULL || (value) == NULL))                                                \
+        return refuse(c, "%s: NULL value references or values for %zu variables", #call, (size_t)(nvr));
+
+#define GETTER(call, member, type)                                                                     \
+    fmi2Status call(fmi2Component component, const fmi2ValueReference vr[], size_t nvr, type value[])  \
+    {                                                                                                  \
+        ENTER(call, READABLE)                                                                          \
+        ARRAYS(call, vr, nvr, value)                                                                   \
+        return after(c, c->bridge->member(c->inner, vr, nvr, value));                                 \
+    }
+
+#define SETTER(call, member, type)                                                                     \
+    fmi2Status call(fmi2Component component, const fmi2ValueReference vr[], size_t nvr, const type value[]) \
+    {                                                                                                  \
+        ENTER(call, SETTABLE)                                                                          \
+        ARRAYS(call, vr, nvr, value)                                                                   \
+        return after(c, c->bridge->member(c->inner, vr, nvr, value));                                 \
+    }
+
+GETTER(fmi2GetReal, getReal, fmi2Real)
+GETTER(fmi2GetInteger, getInteger, fmi2Integer)
+GETTER(fmi2GetBoolean, getBoolean, fmi2Boolean)
+GETTER(fmi2GetString, getString, fmi2String)
+SETTER(fmi2SetReal, setReal, fmi2Real)
+SETTER(fmi2SetInteger, setInteger, fmi2Integer)
+SETTER(fmi2SetBoolean, setBoolean, fmi2Boolean)
+SETTER(fmi2SetString, setString, fmi2String)
+
+/* ---- FMU state: the slave's, holding the state machine's state (loader_common.h) */
+
+fmi2Status fmi2GetFMUstate(fmi2Component component, fmi2FMUstate *state)
+{
+    ENTER(fmi2GetFMUstate, ANY_STATE)
+    return core_get_state(c, "fmi2GetFMUstate", state);
+}
+
+fmi2Status fmi2SetFMUstate(fmi2Component component, fmi2FMUstate state)
+{
+    ENTER(fmi2SetFMUstate, ANY_STATE)
+    return core_set_state(c, "fmi2SetFMUstate", state);
+}
+
+fmi2Status fmi2FreeFMUstate(fmi2Component component, fmi2FMUstate *state)
+{
+    ENTER(fmi2FreeFMUstate, ANY_STATE)
+    return core_free_state(c, state);
+}
+
+fmi2Status fmi2SerializedFMUstateSize(fmi2Component component, fmi2FMUstate state, size_t *size)
+{
+    ENTER(fmi2SerializedFMUstateSize, ANY_STATE)
+    return core_serialized_size(c, "fmi2SerializedFMUstateSize", state, size);
+}
+
+fmi2Status fmi2SerializeFMUstate(fmi2Component component, fmi2FMUstate state, fmi2Byte buffer[], size_t size)
+{
+    ENTER(fmi2SerializeFMUstate, ANY_STATE)
+    return core_serialize(c, "fmi2SerializeFMUstate", state, buffer, size);
+}
+
+fmi2Status fmi2DeSerializeFMUstate(fmi2Component component, const fmi2Byte serializedState[], size_t size,
+                                   fmi2FMUstate *state)
+{
+    ENTER(fmi2DeSerializeFMUstate, ANY_STATE)
+    return core_deserialize(c, "fmi2DeSerializeFMUstate", serializedState, size, state);
+}
+
+/* ---- derivatives */
+
+fmi2Status fmi2GetDirectionalDerivative(fmi2Component component, const fmi2ValueReference vUnknown_ref[],
+                                        size_t nUnknown, const fmi2ValueReference vKnown_ref[], size_t nKnown,
+                                        const fmi2Real dvKnown[], fmi2Real dvUnknown[])
+{
+    (void)vUnknown_ref; (void)nUnknown; (void)vKnown_ref; (void)nKnown; (void)dvKnown; (void)dvUnknown;
+    ENTER(fmi2GetDirectionalDerivative, READABLE)
+    return refuse(c, "fmi2GetDirectionalDerivative is not supported (providesDirectionalDerivative = false)");
+}
+
+fmi2Status fmi2SetRealInputDerivatives(fmi2Component component, const fmi2ValueReference vr[], size_t nvr,
+                                       const fmi2Integer order[], const fmi2Real value[])
+{
+    ENTER(fmi2SetRealInputDerivatives, SETTABLE)
+    ARRAYS(fmi2SetRealInputDerivatives, vr, nvr, value)
+    for (size_t i = 0; i < nvr; i++) {
+        if (order == NULL || order[i] != 1)
+            return refuse(c, "fmi2SetRealInputDerivatives: derivative of order %d for value reference %u: only "
+                          "first derivatives (order 1) are used", order ? order[i] : 0, vr[i]);
+    }
+    return after(c, c->bridge->setRealInputDerivatives(c->inner, vr, nvr, order, value));
+}
+
+fmi2Status fmi2GetRealOutputDerivatives(fmi2Component component, const fmi2ValueReference vr[], size_t nvr,
+                                        const fmi2Integer order[], fmi2Real value[])
+{
+    (void)vr; (void)nvr; (void)order; (void)value;
+    ENTER(fmi2GetRealOutputDerivatives, STEPPED)
+    return refuse(c, "fmi2GetRealOutputDerivatives is not supported (maxOutputDerivativeOrder = 0)");
+}
+
+/* ---- stepping */
+
+fmi2Status fmi2DoStep(fmi2Component component, fmi2Real currentCommunicationPoint,
+                      fmi2Real communicationStepSize, fmi2Boolean noSetFMUStatePriorToCurrentPoint)
+{
+    ENTER(fmi2DoStep, STEP_COMPLETE)
+    double t = currentCommunicationPoint, h = communicationStepSize;
+    if (!finite(h) || h <= 0)
+        return refuse(c, "fmi2DoStep: communicationStepSize %g is not a positive finite number", h);
+    if (!finite(t) || magnitude(t - c->time) > 1e-9 * (magnitude(c->time) > 1 ? magnitude(c->time) : 1))
+        return refuse(c, "fmi2DoStep: currentCommunicationPoint %.17g is not the FMU's current time %.17g",
+                      t, c->time);
+    fmi2Status status = c->bridge->doStep(c->inner, t, h, noSetFMUStatePriorToCurrentPoint);
+    if (status <= fmi2Warning) c->time = t + h;
+    else if (status == fmi2Discard) c->state = STEP_FAILED;
+    return after(c, status);
+}
+
+fmi2Status fmi2CancelStep(fmi2Component component)
+{
+    ENTER(fmi2CancelStep, NO_STATE) /* steps are synchronous: never in stepInProgress */
+    return fmi2Error;
+}
+
+fmi2Status fmi2GetStatus(fmi2Component component, const fmi2StatusKind s, fmi2Status *value)
+{
+    (void)s; (void)value;
+    ENTER(fmi2GetStatus, STATUS_QUERY)
+    return fmi2Discard; /* fmi2DoStepStatus: only meaningful after fmi2Pending, which never happens */
+}
+
+fmi2Status fmi2GetRealStatus(fmi2Component component, const fmi2StatusKind s, fmi2Real *value)
+{
+    ENTER(fmi2GetRealStatus, STATUS_QUERY)
+    if (s != fmi2LastSuccessfulTime || value == NULL) return fmi2Discard;
+    *value = c->time;
+    return fmi2OK;
+}
+
+fmi2Status fmi2GetIntegerStatus(fmi2Component component, const fmi2StatusKind s, fmi2Integer *value)
+{
+    (void)s; (void)value;
+    ENTER(fmi2GetIntegerStatus, STATUS_QUERY)
+    return fmi2Discard;
+}
+
+fmi2Status fmi2GetBooleanStatus(fmi2Component component, const fmi2StatusKind s, fmi2Boolean *value)
+{
+    ENTER(fmi2GetBooleanStatus, STATUS_QUERY)
+    if (s != fmi2Terminated || value == NULL) return fmi2Discard;
+    *value = fmi2False; /* the slave never asks to end the simulation */
+    return fmi2OK;
+}
+
+fmi2Status fmi2GetStringStatus(fmi2Component component, const fmi2StatusKind s, fmi2String *value)
+{
+    (void)s; (void)value;
+    ENTER(fmi2GetStringStatus, STATUS_QUERY)
+    return fmi2Discard;
+}

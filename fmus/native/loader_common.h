@@ -1,0 +1,500 @@
+/*
+ * What the FMI 2.0 loader (loader.c) and the FMI 3.0 loader (loader_fmi3.c) share: everything that
+ * does not depend on the FMI version (details: docs/portability.md, docs/fmi3.md).
+ *
+ *   - finding or starting Python and loading the BRIDGE, once per process (get_bridge);
+ *   - the CORE of an instance: the bridge's component, the state machine's state and time, where
+ *     messages go (an fmi2CallbackFunctions: the FMI 3 loader points it at a trampoline), and the
+ *     rule that a FAILED call moves the instance to the version's failure state while a call the
+ *     slave REFUSED (it changed nothing) leaves it where it was (after());
+ *   - FMU states: the slave's, which hold the loader's fields (FMI version, state machine state; the
+ *     time is the slave's): one serialized format, the slave's (fmus/state_format.py), with one
+ *     identity check and one checksum; the loader validates its fields whenever a state comes back.
+ *
+ * Each loader includes this file once; everything here is static (nothing is exported).
+ * The bridge is the same for both FMI versions: it speaks the FMI 2.0 signatures with the slave's
+ * scalar value references (obsfmu_native.h).
+ */
+#ifndef OBSFMU_LOADER_COMMON_H
+#define OBSFMU_LOADER_COMMON_H
+
+#include <dlfcn.h>
+#include <pthread.h>
+#include <stdarg.h>
+#include <stdint.h>
+#include <sys/stat.h>
+
+#include "obsfmu_native.h"
+
+#define OVERRIDE "OBSFMU_PYTHON"
+#define PATH_SIZE 4096
+
+static double magnitude(double x) { return x < 0 ? -x : x; }
+static int finite(double x) { return x == x && magnitude(x) <= 1.7976931348623157e308; }
+
+/* ------------------------------------------------------------------ finding Python */
+
+static pthread_mutex_t lock = PTHREAD_MUTEX_INITIALIZER;
+static void *bridge_library;          /* this loader's bridge (closed when the loader is unloaded) */
+static const ObsfmuBridge *bridge;
+static char start_failure[PATH_SIZE]; /* an interpreter that failed to start cannot be retried */
+
+static int exists(const char *path)
+{
+    struct stat info;
+    return path[0] != '\0' && stat(path, &info) == 0;
+}
+
+/* "3.11.7 (main, ...)" has the version "3.11" (and "3.1" does not). */
+static int same_version(const char *running, const char *wanted)
+{
+    size_t n = strlen(wanted);
+    return running && strncmp(running, wanted, n) == 0 && (running[n] == '.' || running[n] == ' ' || running[n] == '\0');
+}
+
+/* dirname, in place */
+static void parent(char *path)
+{
+    char *slash = strrchr(path, '/');
+    if (slash && slash != path) *slash = '\0';
+    else if (slash) slash[1] = '\0';
+}
+
+/* Append `path` to the list of places looked at; return it if it exists. */
+static int candidate(const char *path, char *tried, size_t size)
+{
+    size_t used = strlen(tried);
+    snprintf(tried + used, size - used, "%s%s", used ? ", " : "", path);
+    return exists(path);
+}
+
+/* <root>/pyvenv.cfg (a virtual environment) says "home = <base>/bin"; otherwise base = root. */
+static void base_installation(const char *root, char *base, size_t size)
+{
+    char path[PATH_SIZE], line[PATH_SIZE];
+    snprintf(base, size, "%s", root);
+    snprintf(path, sizeof path, "%s/pyvenv.cfg", root);
+    FILE *file = fopen(path, "r");
+    if (file == NULL) return;
+    while (fgets(line, sizeof line, file)) {
+        char *value = strchr(line, '=');
+        if (strncmp(line, "home", 4) != 0 || strchr(" \t=", line[4]) == NULL || value == NULL) continue;
+        value += 1 + strspn(value + 1, " \t");
+        value[strcspn(value, "\r\n")] = '\0';
+        snprintf(base, size, "%s", value);
+        parent(base);
+    }
+    fclose(file);
+}
+
+/* The python executable and libpython of $OBSFMU_PYTHON: a prefix, a venv or a python executable. */
+static int python_from_override(const char *value, const char *record, char *program, char *library,
+                                char *tried, size_t size)
+{
+    char version[32], multiarch[128], root[PATH_SIZE], base[PATH_SIZE], path[2 * PATH_SIZE + 64];
+    obsfmu_record_value(record, "python_version", version, sizeof version);
+    obsfmu_record_value(record, "python_multiarch", multiarch, sizeof multiarch);
+    struct stat info;
+    program[0] = library[0] = '\0';
+    snprintf(root, sizeof root, "%s", value);
+    if (stat(value, &info) == 0 && !S_ISDIR(info.st_mode)) { /* <root>/bin/python */
+        snprintf(program, PATH_SIZE, "%s", value);
+        parent(root);
+        parent(root);
+    } else {
+        const char *names[] = {version, "3", ""};
+        for (int i = 0; i < 3 && !program[0]; i++) {
+            snprintf(path, sizeof path, "%s/bin/python%s", root, names[i]);
+            if (candidate(path, tried, size)) snprintf(program, PATH_SIZE, "%s", path);
+        }
+    }
+    base_installation(root, base, sizeof base);
+    char folders[3][160] = {"lib", "lib64", ""};
+    if (multiarch[0]) snprintf(folders[2], sizeof folders[2], "lib/%s", multiarch);
+    const char *suffixes[] = {".so.1.0", ".so.1", ".so"};
+    for (int f = 0; f < 3 && !library[0]; f++) {
+        for (int s = 0; folders[f][0] && s < 3 && !library[0]; s++) {
+            snprintf(path, sizeof path, "%s/%s/libpython%s%s", base, folders[f], version, suffixes[s]);
+            if (candidate(path, tried, size)) snprintf(library, PATH_SIZE, "%s", path);
+        }
+    }
+    return program[0] && library[0];
+}
+
+/* Load libpython (RTLD_GLOBAL: extension modules resolve their symbols there); 1 if it must be started. */
+static void *load_python(const char *record, char *program, int *must_start, char *message, size_t size)
+{
+    char version[32], library[PATH_SIZE], tried[PATH_SIZE] = "";
+    obsfmu_record_value(record, "python_version", version, sizeof version);
+    const char *override = getenv(OVERRIDE);
+    const char *fix = "set " OVERRIDE " to a Python %s installation prefix, virtual environment or python "
+                      "executable that has numpy and scipy (e.g. " OVERRIDE "=/path/to/venv)";
+    char hint[512];
+    snprintf(hint, sizeof hint, fix, version);
+    if (override && override[0]) {
+        if (!python_from_override(override, record, program, library, tried, sizeof tried)) {
+            snprintf(message, size, "no usable Python %s for this FMU: no Python runs in this process, and "
+                     OVERRIDE "=%s has no python executable and libpython%s (looked for %s); %s", version,
+                     override, version, tried, hint);
+            return NULL;
+        }
+    } else {
+        obsfmu_record_value(record, "python_executable", program, PATH_SIZE);
+        obsfmu_record_value(record, "python_library", library, sizeof library);
+        if (!exists(program) || !exists(library)) {
+            snprintf(message, size, "no usable Python %s for this FMU: no Python runs in this process, "
+                     OVERRIDE " is not set, and the Python recorded when the FMU was built is not here "
+                     "(python executable %s: %s; shared library libpython %s: %s); %s", version,
+                     program[0] ? program : "(none)", exists(program) ? "found" : "missing",
+                     library[0] ? library : "(none: that Python has no shared libpython)",
+                     exists(library) ? "found" : "missing", hint);
+            return NULL;
+        }
+    }
+    void *python = dlopen(library, RTLD_NOW | RTLD_GLOBAL);
+    if (python == NULL) {
+        snprintf(message, size, "cannot load %s: %s; %s", library, dlerror(), hint);
+        return NULL;
+    }
+    const char *(*get_version)(void) = (const char *(*)(void))dlsym(python, "Py_GetVersion");
+    int (*initialized)(void) = (int (*)(void))dlsym(python, "Py_IsInitialized");
+    if (get_version == NULL || initialized == NULL || !same_version(get_version(), version)) {
+        snprintf(message, size, "%s is not Python %s (it is %.20s); %s", library, version,
+                 get_version ? get_version() : "not a libpython", hint);
+        return NULL; /* never dlclose a libpython: it may have run already */
+    }
+    *must_start = !initialized();
+    return python;
+}
+
+/* The bridge of this FMU, with a Python to run it; NULL and a message saying what is missing. */
+static const ObsfmuBridge *get_bridge(const char *resources, const char *record, char *message, size_t size)
+{
+    pthread_mutex_lock(&lock);
+    if (bridge == NULL && start_failure[0]) snprintf(message, size, "%s", start_failure);
+    if (bridge != NULL || start_failure[0]) goto done;
+
+    char version[32], program[PATH_SIZE] = "", name[PATH_SIZE], path[2 * PATH_SIZE];
+    obsfmu_record_value(record, "python_version", version, sizeof version);
+    obsfmu_record_value(record, "bridge", name, sizeof name);
+    int must_start = 0;
+    int (*initialized)(void) = (int (*)(void))dlsym(RTLD_DEFAULT, "Py_IsInitialized");
+    if (initialized != NULL) { /* the process has Python: use it */
+        const char *(*get_version)(void) = (const char *(*)(void))dlsym(RTLD_DEFAULT, "Py_GetVersion");
+        const char *running = get_version ? get_version() : "";
+        if (!same_version(running, version)) {
+            snprintf(message, size, "this process runs Python %.20s, but this FMU's binary was built for Python %s: "
+                     "load it from a Python %s process, or rebuild it (obsfmu build) with the host's Python",
+                     running, version, version);
+            goto done;
+        }
+        must_start = !initialized();
+        obsfmu_record_value(record, "python_executable", program, sizeof program);
+    } else if (load_python(record, program, &must_start, message, size) == NULL) {
+        goto done;
+    }
+
+    snprintf(path, sizeof path, "%s/../%s", resources, name);
+    void *library = dlopen(path, RTLD_NOW | RTLD_LOCAL);
+    ObsfmuBridgeFunction *table = library ? (ObsfmuBridgeFunction *)dlsym(library, OBSFMU_BRIDGE_SYMBOL) : NULL;
+    if (table == NULL || table()->abi != OBSFMU_BRIDGE_ABI) {
+        snprintf(message, size, "cannot load the FMU's bridge %s: %s", path,
+                 library ? "not an obsfmu bridge of this version" : dlerror());
+        if (library) dlclose(library);
+        goto done;
+    }
+    if (must_start && table()->start(program, message, size) != 0) {
+        snprintf(start_failure, sizeof start_failure, "%s", message);
+        goto done; /* the bridge stays loaded: the half-started interpreter may point into it */
+    }
+    bridge_library = library;
+    bridge = table();
+done:
+    pthread_mutex_unlock(&lock);
+    return bridge;
+}
+
+__attribute__((destructor)) static void unload(void)
+{
+    if (bridge_library) dlclose(bridge_library);
+}
+
+/* ------------------------------------------------------------------ the core of an instance */
+
+/* What differs between the FMI versions in the parts below. */
+typedef struct {
+    int fmi;                     /* 2 or 3: kept in every FMU state */
+    unsigned every_state;        /* mask of the state machine's states */
+    unsigned before_init;        /* states before exitInitializationMode (the slave not initialized) */
+    unsigned after_init;         /* states after it (the slave initialized); the others: either */
+    unsigned failed;             /* the state a failed call (fmi2Error/fmi3Error) leads to */
+    const char *(*state_name)(unsigned state);
+    const char *prefix;          /* "fmi2" or "fmi3", for messages */
+} Version;
+
+/* A start value of an exported copy (resources/obsfmu_start.txt, see core_read_starts). */
+typedef struct {
+    char type;                    /* 'R' real, 'I' integer */
+    fmi2ValueReference vr;        /* the slave's value reference */
+    double value;
+} Start;
+
+typedef struct {
+    const Version *version;
+    const ObsfmuBridge *bridge;
+    fmi2Component inner;          /* the bridge's component */
+    unsigned state;               /* one bit of version->every_state */
+    double time;                  /* the FMU's current communication point */
+    fmi2CallbackFunctions callbacks;
+    char *name;
+    Start *starts;                /* applied after instantiation and after every reset */
+    size_t start_count;
+} Core;
+
+static void say(const fmi2CallbackFunctions *callbacks, const char *name, fmi2Status status, const char *format, ...)
+{
+    char message[8192];
+    va_list arguments;
+    va_start(arguments, format);
+    vsnprintf(message, sizeof message, format, arguments);
+    va_end(arguments);
+    obsfmu_emit(callbacks, name, status, obsfmu_category(status), message);
+}
+
+#define refuse(core, ...) (say(&(core)->callbacks, (core)->name, fmi2Error, __VA_ARGS__), fmi2Error)
+
+/* The status of a call that reached the bridge.  fmi2Error: a call the slave refused (it changed
+ * nothing) leaves the instance in its state, a failed one moves it to the version's failure state. */
+static fmi2Status after(Core *c, fmi2Status status)
+{
+    if (status < fmi2Error) return status;
+    if (!c->bridge->refused(c->inner)) c->state = c->version->failed;
+    return fmi2Error;
+}
+
+/* ------------------------------------------------------------------ FMU states */
+
+/* An FMU state is the slave's (an object of the bridge): it holds the loader's fields, which the
+ * loader hands over when the state is saved and validates whenever a state comes back (set or
+ * deserialized: a state of this FMI version, a known state machine state that agrees with the
+ * slave's initialization).  The serialized form is the slave's alone (fmus/state_format.py: format
+ * version, identity = model name and GUID / instantiationToken, SHA-256 of everything). */
+
+static unsigned state_bit(const Version *version, const char *name)
+{
+    for (unsigned bit = 1; bit != 0 && bit <= version->every_state; bit <<= 1)
+        if ((version->every_state & bit) && strcmp(version->state_name(bit), name) == 0) return bit;
+    return 0;
+}
+
+/* The loader's fields of `state`, validated: fmi2OK and the state machine state in *bit and the time in
+ * *time, or fmi2Error after a message (nothing changes). */
+static fmi2Status core_machine(Core *c, const char *call, void *state, unsigned *bit, double *time)
+{
+    ObsfmuMachine machine;
+    fmi2Status status = c->bridge->machineOf(c->inner, state, &machine);
+    if (status >= fmi2Error) return after(c, status);
+    const Version *v = c->version;
+    *bit = machine.fmi == v->fmi ? state_bit(v, machine.state) : 0;
+    *time = machine.time;
+    if (machine.fmi == 0)
+        return refuse(c, "%s: the state holds no state machine fields (not saved by an obsfmu FMU binary)", call);
+    if (machine.fmi != v->fmi)
+        return refuse(c, "%s: this state was saved by the FMI %d.0 binary of this FMU; this is the FMI %d.0 binary",
+                      call, machine.fmi, v->fmi);
+    if (*bit == 0) return refuse(c, "%s: the state machine state %.31s of the state is unknown", call, machine.state);
+    if ((machine.initialized && (*bit & v->before_init)) || (!machine.initialized && (*bit & v->after_init)))
+        return refuse(c, "%s: the state is damaged: state machine state %s, but the slave %s initialized", call,
+                      machine.state, machine.initialized ? "was" : "was not");
+    return status;
+}
+
+static fmi2Status core_get_state(Core *c, const char *call, void **state)
+{
+    if (state == NULL) return refuse(c, "%s: FMUState is NULL", call);
+    ObsfmuMachine machine = {c->version->fmi, "", 0.0, 0};
+    snprintf(machine.state, sizeof machine.state, "%s", c->version->state_name(c->state));
+    return after(c, c->bridge->getFMUstate(c->inner, &machine, state));
+}
+
+static fmi2Status core_set_state(Core *c, const char *call, void *state)
+{
+    unsigned bit;
+    double time;
+    if (state == NULL) return refuse(c, "%s: FMUState is NULL", call);
+    fmi2Status status = core_machine(c, call, state, &bit, &time);
+    if (status >= fmi2Error) return status;
+    status = c->bridge->setFMUstate(c->inner, state);
+    if (status < fmi2Error) {
+        c->state = bit;
+        c->time = time;
+    }
+    return after(c, status);
+}
+
+static fmi2Status core_free_state(Core *c, void **state)
+{
+    if (state == NULL || *state == NULL) return fmi2OK;
+    return after(c, c->bridge->freeFMUstate(c->inner, state));
+}
+
+static fmi2Status core_serialized_size(Core *c, const char *call, void *state, size_t *size)
+{
+    if (state == NULL || size == NULL) return refuse(c, "%s: NULL argument", call);
+    return after(c, c->bridge->serializedFMUstateSize(c->inner, state, size));
+}
+
+static fmi2Status core_serialize(Core *c, const char *call, void *state, fmi2Byte buffer[], size_t size)
+{
+    size_t needed = 0;
+    if (state == NULL || buffer == NULL) return refuse(c, "%s: NULL argument", call);
+    fmi2Status status = c->bridge->serializedFMUstateSize(c->inner, state, &needed);
+    if (status >= fmi2Error) return after(c, status);
+    if (size < needed) return refuse(c, "%s: buffer of %zu bytes, %zu needed", call, size, needed);
+    return after(c, c->bridge->serializeFMUstate(c->inner, state, buffer, size));
+}
+
+/* The slave checks the bytes (format, identity, checksum, its own fields); then the loader its fields. */
+static fmi2Status core_deserialize(Core *c, const char *call, const fmi2Byte bytes[], size_t size, void **state)
+{
+    unsigned bit;
+    double time;
+    void *read = NULL;
+    if (bytes == NULL || state == NULL) return refuse(c, "%s: NULL argument", call);
+    fmi2Status status = c->bridge->deSerializeFMUstate(c->inner, bytes, size, &read);
+    if (status >= fmi2Error || read == NULL) return after(c, status >= fmi2Error ? status : fmi2Error);
+    fmi2Status checked = core_machine(c, call, read, &bit, &time);
+    if (checked >= fmi2Error) {
+        c->bridge->freeFMUstate(c->inner, &read);
+        return checked;
+    }
+    if (*state != NULL) c->bridge->freeFMUstate(c->inner, state); /* FMI: an existing state is overwritten */
+    *state = read;
+    return status > checked ? status : checked;
+}
+
+/* ------------------------------------------------------------------ instantiation */
+
+/* The record of the FMU unzipped around `resources`, if its token (GUID, instantiationToken) is `token`;
+ * NULL after one message (through `callbacks`) saying what is wrong. */
+static char *checked_record(const fmi2CallbackFunctions *callbacks, const char *name, const char *call,
+                            const char *resources, const char *location, const char *token, const char *token_name)
+{
+    char expected[128];
+    char *record = resources ? obsfmu_read_record(resources) : NULL;
+    if (record == NULL) {
+        say(callbacks, name, fmi2Error, "%s: cannot read %s/" OBSFMU_RECORD " (resource location %s): not an unzipped "
+            "obsfmu FMU", call, resources ? resources : "", location);
+        return NULL;
+    }
+    obsfmu_record_value(record, "guid", expected, sizeof expected);
+    if (token == NULL || strcmp(token, expected) != 0) {
+        say(callbacks, name, fmi2Error, "%s: %s %s is not this FMU's (%s): the modelDescription.xml used does not "
+            "belong to this binary", call, token_name, token ? token : "(null)", expected);
+        free(record);
+        return NULL;
+    }
+    return record;
+}
+
+/* ------------------------------------------------------------------ start values of an exported copy */
+
+/* resources/obsfmu_start.txt, written by `obsfmu export` into the FMU copies it exports (fmus/export.py):
+ * lines "<R|I> <the slave's value reference> <value>".  The loader sets them right after instantiation
+ * and after every reset, so the copy's own defaults are the start values its modelDescription.xml
+ * declares -- the exported system keeps its configuration in importers that ignore the SSP/OSP
+ * parameter bindings.  No file: no start values.  0 on success, else a message. */
+static int core_read_starts(Core *c, const char *resources, char *message, size_t size)
+{
+    char path[PATH_SIZE + 32], line[256];
+    snprintf(path, sizeof path, "%s/" OBSFMU_STARTS, resources);
+    FILE *file = fopen(path, "r");
+    if (file == NULL) return 0;
+    while (fgets(line, sizeof line, file)) {
+        Start start;
+        unsigned vr;
+        if (line[0] == '#' || line[0] == '\n') continue;
+        if (sscanf(line, " %c %u %lf", &start.type, &vr, &start.value) != 3 || (start.type != 'R' && start.type != 'I')) {
+            snprintf(message, size, "%s is damaged (line: %.100s)", path, line);
+            fclose(file);
+            return -1;
+        }
+        start.vr = vr;
+        Start *grown = realloc(c->starts, (c->start_count + 1) * sizeof(Start));
+        if (grown == NULL) {
+            fclose(file);
+            snprintf(message, size, "out of memory");
+            return -1;
+        }
+        c->starts = grown;
+        c->starts[c->start_count++] = start;
+    }
+    fclose(file);
+    return 0;
+}
+
+static fmi2Status core_apply_starts(Core *c)
+{
+    fmi2Status worst = fmi2OK;
+    for (size_t i = 0; i < c->start_count && worst < fmi2Error; i++) {
+        Start *start = &c->starts[i];
+        fmi2Status status;
+        if (start->type == 'R') {
+            status = c->bridge->setReal(c->inner, &start->vr, 1, &start->value);
+        } else {
+            fmi2Integer integer = (fmi2Integer)start->value;
+            status = c->bridge->setInteger(c->inner, &start->vr, 1, &integer);
+        }
+        worst = status > worst ? status : worst;
+    }
+    return worst;
+}
+
+/* ------------------------------------------------------------------ the life of a core */
+
+/* Fill the core of a new instance whose bridge component is `inner` and set the copy's start
+ * values; 0 on success (on failure the caller frees `inner` and the core, core_free). */
+static int core_init(Core *c, const Version *version, const ObsfmuBridge *bridge, fmi2Component inner,
+                     const char *name, unsigned state, const char *resources)
+{
+    char message[8192];
+    c->version = version;
+    c->bridge = bridge;
+    c->inner = inner;
+    c->state = state;
+    c->time = 0.0;
+    c->name = malloc(strlen(name) + 1);
+    if (c->name == NULL) return -1;
+    strcpy(c->name, name);
+    if (core_read_starts(c, resources, message, sizeof message) != 0) {
+        say(&c->callbacks, name, fmi2Error, "%sInstantiate: %s", version->prefix, message);
+        return -1;
+    }
+    return core_apply_starts(c) >= fmi2Error ? -1 : 0;
+}
+
+static void core_free(Core *c)
+{
+    free(c->name);
+    free(c->starts);
+    c->name = NULL;
+    c->starts = NULL;
+    c->start_count = 0;
+}
+
+/* fmi2Reset/fmi3Reset: a fresh slave, the copy's start values, state instantiated at time 0. */
+static fmi2Status core_reset(Core *c, unsigned instantiated)
+{
+    fmi2Status status = c->bridge->reset(c->inner);
+    if (status < fmi2Error) {
+        fmi2Status set = core_apply_starts(c);
+        status = set > status ? set : status;
+    }
+    if (status < fmi2Error) {
+        c->state = instantiated;
+        c->time = 0.0;
+    }
+    return after(c, status);
+}
+
+#endif

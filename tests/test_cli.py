@@ -1,0 +1,235 @@
+"""The command line never shows a traceback for a user mistake (issue 13, item 6) and documents itself (16.4).
+
+Every bad input of the issue's list gets one line on stderr naming the argument or field, and
+exit code 2 -- before anything is simulated.  Run in-process through ``fmus.cli.main``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import tempfile
+import zipfile
+
+import numpy as np
+import pytest
+from fmpy import read_model_description
+
+from fmus import cli
+from fmus.result import Result
+from fmus.scenarios import SCENARIOS, ensure_fmus, get
+
+
+def _unwritable_directory(tmp_path):
+    """A directory this process cannot create files in (chmod for normal users; /sys for root)."""
+    candidate = tmp_path / "read-only"
+    candidate.mkdir()
+    candidate.chmod(0o555)
+    for directory in (candidate, "/sys"):
+        try:
+            with tempfile.TemporaryFile(dir=directory):
+                continue
+        except OSError:
+            return str(directory)
+    pytest.skip("no directory here refuses new files")
+
+
+@pytest.fixture(scope="module")
+def ship_build(build_dir):
+    ensure_fmus(get("ship"), build_dir)
+    return str(build_dir)
+
+
+@pytest.fixture
+def no_simulation(monkeypatch):
+    """Fail the test if an FMU is instantiated: the error must come before the simulation."""
+    import fmus.scenarios
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("the simulation started although the command line was bad")
+    monkeypatch.setattr(fmus.scenarios, "Session", refuse)
+
+
+def _configs(tmp_path):
+    (tmp_path / "empty.toml").write_text("")
+    (tmp_path / "booleans.toml").write_text(
+        'name = "b"\n[plant]\nA = [[true, 1], [0, 0]]\nC = [[1, 0]]\n[observer]\nt_settle = 1.0\n')
+    (tmp_path / "a-directory.toml").mkdir()
+    (tmp_path / "a-file").write_text("x")
+
+
+BAD = {  # id: (argv with {B} = build dir, {T} = tmp dir, {RO} = unwritable dir; expected text on stderr)
+    "output-interval 0": (["run", "ship", "--output-interval", "0"], "argument --output-interval: must be a positive"),
+    "output-interval -1": (["run", "ship", "--output-interval", "-1"], "argument --output-interval: must be a positive"),
+    "stop-time inf": (["run", "ship", "--stop-time", "inf"], "argument --stop-time: must be a positive finite number"),
+    "stop-time nan": (["run", "ship", "--stop-time", "nan"], "argument --stop-time: must be a positive finite number"),
+    "stop-time words": (["run", "ship", "--stop-time", "5 parsec"], "argument --stop-time: '5 parsec' is not a time"),
+    "step 0": (["run", "ship", "--step", "0"], "argument --step: must be a positive finite number"),
+    "tol -1": (["run", "ship", "--tol", "-1"], "argument --tol: must be a positive finite number"),
+    "export step 0": (["export", "ship", "--format", "ssp", "--out", "{T}/x", "--step", "0"],
+                      "argument --step: must be a positive finite number"),
+    "export set nan": (["export", "ship", "--format", "ssp", "--out", "{T}/x", "--set", "plant.x0[1]=nan"],
+                       "--set 'plant.x0[1]=nan': the value must be a finite number"),
+    "run set inf": (["run", "ship", "--set", "plant.x0[1]=inf"], "--set 'plant.x0[1]=inf': the value must be a finite"),
+    "run set nan": (["run", "ship", "--set", "plant.x0[1]=nan"], "--set 'plant.x0[1]=nan': the value must be a finite"),
+    "set above max": (["run", "ship", "--set", "observer.u_interpolation=7"],
+                      "--set observer.u_interpolation=7: above the maximum 2 declared by the FMU"),
+    "set below min": (["run", "ship", "--set", "observer.u_interpolation=-1"],
+                      "--set observer.u_interpolation=-1: below the minimum 0"),
+    "set integer": (["run", "ship", "--set", "observer.u_interpolation=1.5"],
+                    "--set observer.u_interpolation=1.5: Integer variable, expected a whole number"),
+    "set output": (["run", "ship", "--set", "observer.x_hat[1]=1"],
+                   "--set observer.x_hat[1]: is an output of observer and cannot be set"),
+    "set connected input": (["run", "ship", "--set", "observer.y=1"], "--set observer.y: is a connected input"),
+    "export set output": (["export", "ship", "--format", "osp", "--out", "{T}/x", "--set", "plant.y=1"],
+                          "--set plant.y: is an output of plant"),
+    "config boolean": (["build", "--config", "{T}/booleans.toml", "--out", "{T}/b"],
+                       "plant.A: entry (1, 1) is true, expected a number"),
+    "config empty": (["build", "--config", "{T}/empty.toml", "--out", "{T}/b"], "the file is empty"),
+    "config directory": (["build", "--config", "{T}/a-directory.toml", "--out", "{T}/b"],
+                         "a-directory.toml: is a directory, expected a TOML file"),
+    "plot directory": (["run", "ship", "--plot", "{T}"], "--plot {T}: is a directory, expected a file name"),
+    "plot format": (["run", "ship", "--plot", "{T}/figure.jpg"], "expected a file name ending in .png or .svg"),
+    "csv directory": (["run", "ship", "--csv", "{T}"], "--csv {T}: is a directory, expected a file name"),
+    "csv missing directory": (["run", "ship", "--csv", "{T}/missing/out.csv"], "directory {T}/missing does not exist"),
+    "csv read-only directory": (["run", "ship", "--csv", "{RO}/out.csv"], "--csv {RO}/out.csv: cannot write in"),
+    "build-dir a file": (["run", "ship", "--build-dir", "{T}/a-file"], "--build-dir {T}/a-file: is a file"),
+    "build out a file": (["build", "--out", "{T}/a-file"], "--out {T}/a-file: is a file, expected a directory"),
+    "build out read-only": (["build", "--out", "{RO}/sub"], "--out {RO}/sub: cannot create the directory"),
+    "all out a file": (["all", "--out", "{T}/a-file"], "--out {T}/a-file: is a file, expected a directory"),
+    "all out read-only": (["all", "--out", "{RO}/sub"], "--out {RO}/sub: cannot create the directory"),
+    "export out read-only": (["export", "ship", "--format", "osp", "--out", "{RO}/sub"],
+                             "--out {RO}/sub: cannot create the directory"),
+    "all build-dir a file": (["all", "--build-dir", "{T}/a-file", "--out", "{T}/r"], "--build-dir {T}/a-file: is a file"),
+    "export out a file": (["export", "ship", "--format", "ssp", "--out", "{T}/a-file"], "--out {T}/a-file: is a file"),
+    "report out a file": (["report", "--out", "{T}/a-file"], "--out {T}/a-file: is a file, expected a directory"),
+    "unknown scenario": (["run", "nonesuch"], "unknown scenario 'nonesuch'; available: discrete-gpebo"),
+    "unknown format": (["export", "ship", "--format", "fmi", "--out", "{T}/x"], "argument --format: invalid choice"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD))
+def test_a_bad_input_is_one_line_naming_it_and_exit_code_2(case, ship_build, tmp_path, capsys, no_simulation):
+    argv, expected = BAD[case]
+    _configs(tmp_path)
+    values = {"T": str(tmp_path), "B": ship_build}
+    if any("{RO}" in a for a in argv):
+        values["RO"] = _unwritable_directory(tmp_path)
+    argv = [a.format(**values) for a in argv]
+    if "--build-dir" not in argv and argv[0] in ("run", "export"):
+        argv += ["--build-dir", ship_build]
+    assert cli.main(argv) == 2
+    captured = capsys.readouterr()
+    assert expected.format(**values) in captured.err
+    assert len(captured.err.strip().splitlines()) == 1, captured.err
+    assert "Traceback" not in captured.err + captured.out
+
+
+def test_a_bad_parameter_reported_by_the_fmu_is_printed_once(ship_build, capsys):
+    """``N[1] = 0`` passes the declared range but makes A - N C unstable: the FMU refuses it."""
+    assert cli.main(["run", "ship", "--build-dir", ship_build, "--stop-time", "0.01", "--set", "observer.N[1]=0"]) == 2
+    err = capsys.readouterr().err
+    # the FMU refuses the set during initialization (the first call that needs the block)
+    assert len(err.strip().splitlines()) == 1 and err.startswith("obsfmu: error: observer: ")
+    assert "N: not Hurwitz" in err
+
+
+def test_nonsense_values_are_not_written_to_an_export(ship_build, tmp_path):
+    assert cli.main(["export", "ship", "--format", "ssp", "--out", str(tmp_path), "--build-dir", ship_build,
+                     "--set", "plant.x0[1]=nan", "--step", "0"]) == 2
+    assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("damage", ["modelDescription", "binary", "zip"])
+def test_a_damaged_cached_fmu_is_rebuilt(ship_build, tmp_path, capsys, damage):
+    build = tmp_path / "build"
+    shutil.copytree(ship_build, build)
+    fmu = build / "ship_observer.fmu"
+    with zipfile.ZipFile(fmu) as archive:
+        entries = {name: archive.read(name) for name in archive.namelist()}
+    if damage == "modelDescription":
+        entries["modelDescription.xml"] = entries["modelDescription.xml"][:200]
+    elif damage == "binary":
+        entries = {name: data for name, data in entries.items() if not name.startswith("binaries/")}
+    if damage == "zip":
+        fmu.write_bytes(fmu.read_bytes()[:1000])
+    else:
+        with zipfile.ZipFile(fmu, "w") as archive:
+            for name, data in entries.items():
+                archive.writestr(name, data)
+    assert cli.main(["run", "ship", "--build-dir", str(build), "--stop-time", "0.01", "--step", "1e-3"]) == 0
+    captured = capsys.readouterr()
+    if damage != "zip":  # a broken zip is simply not current: rebuilt without a note
+        assert f"{fmu}: it" in captured.err and "rebuilding it" in captured.err
+    assert "Traceback" not in captured.err
+    assert read_model_description(str(fmu)).modelName == "ship_observer"
+
+
+# ----------------------------------------------------------------------------- help (issue 16, item 4)
+def _subparsers(parser):
+    return next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+
+
+def test_every_subcommand_and_option_is_documented():
+    subparsers = _subparsers(cli.parser())
+    documented = {choice.dest: choice.help for choice in subparsers._choices_actions}
+    assert set(documented) >= {"build", "list", "run", "export", "all", "report"}
+    assert all(documented.values()), documented
+    for name, sub in subparsers.choices.items():
+        for action in sub._actions:
+            if not isinstance(action, argparse._HelpAction):
+                assert action.help, f"obsfmu {name} {action.option_strings or action.dest}: no help"
+
+
+@pytest.mark.parametrize("command", ["run", "export"])
+def test_help_lists_every_scenario_on_one_line(command, capsys):
+    assert cli.main([command, "--help"]) == 0
+    out = capsys.readouterr().out
+    for name, scenario in SCENARIOS.items():
+        lines = [line for line in out.splitlines() if line.split()[:1] == [name]]
+        assert len(lines) == 1 and scenario.description in lines[0] and f"[{scenario.time_unit}]" in lines[0]
+
+
+def test_a_subcommand_registers_itself_with_one_call(capsys):
+    calls = []
+
+    def configure(parser):
+        parser.add_argument("--count", type=int, default=1, help="how many")
+
+    cli.register("hello-test", "say hello (test)", configure, lambda args: calls.append(args.count) or 7)
+    try:
+        assert cli.main(["hello-test", "--count", "3"]) == 7 and calls == [3]
+        assert cli.main(["--help"]) == 0 and "say hello (test)" in capsys.readouterr().out
+        with pytest.raises(ValueError, match="registered twice"):
+            cli.register("hello-test", "again", configure, lambda args: 0)
+    finally:
+        cli.SUBCOMMANDS.pop("hello-test")
+
+
+# ----------------------------------------------------------------------------- time units (issue 16, item 2)
+def test_times_are_in_the_scenarios_unit_unless_one_is_given(build_dir, tmp_path, capsys):
+    """The chemostat runs in hours: 90min and 36s are 1.5 h and 0.01 h."""
+    csv, figure = tmp_path / "chemostat.csv", tmp_path / "chemostat.png"
+    assert cli.main(["run", "state-affine-chemostat", "--build-dir", str(build_dir), "--stop-time", "90min",
+                     "--step", "36s", "--csv", str(csv), "--plot", str(figure)]) == 0
+    out = capsys.readouterr().out
+    assert "state-affine-chemostat: 150 steps to t = 1.5 h" in out
+    assert "switched (nu < 0.98): not reached" in out and "inf" not in out
+    result = Result.from_csv(csv)
+    np.testing.assert_allclose(np.diff(result.time), 0.01, rtol=1e-9)
+    assert result.time[-1] == pytest.approx(1.5)
+    assert "time t [h]" in figure.with_suffix(".svg").read_text()
+
+
+def test_the_steps_line_carries_the_time_unit(build_dir, capsys):
+    assert cli.main(["run", "ship", "--build-dir", str(build_dir), "--stop-time", "0.05", "--step", "1e-3"]) == 0
+    assert "ship: 50 steps to t = 0.05 s" in capsys.readouterr().out
+
+
+def test_output_paths_are_checked_before_anything_is_built(tmp_path, monkeypatch, capsys):
+    import fmus.scenarios
+    monkeypatch.setattr(fmus.scenarios, "ensure_fmus", lambda *a, **k: pytest.fail("built before the check"))
+    assert cli.main(["run", "ship", "--build-dir", str(tmp_path / "b"), "--csv", str(tmp_path / "no" / "x.csv")]) == 2
+    assert not (tmp_path / "b").exists() or not list((tmp_path / "b").iterdir())
+    assert os.path.basename(str(tmp_path / "no")) in capsys.readouterr().err

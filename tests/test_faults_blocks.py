@@ -1,0 +1,214 @@
+"""The block state of :mod:`observers.state` on every block kind, without FMI.
+
+* The sharing rule: ``advance`` rebinds its state attributes and never writes into a state
+  array (``self.x += ...``, ``self.x[0] = ...``); the FMU layer's cheap rollback depends on it.
+  :func:`mutated_in_place` finds any violation; it is shown to catch one.
+* A captured state restores the block exactly (rollback) and fits a fresh block (round trip).
+* Restoring checks everything first and names the mismatch; nothing changes on an error.
+* The sub-step budget of :func:`observers.integrators.substep_count`.
+"""
+
+from __future__ import annotations
+
+import copy
+from collections import deque
+
+import numpy as np
+import pytest
+
+from fmus.kinds import create_block
+from fmus.scenarios import SCENARIOS
+from observers.block import Block, Segment
+from observers.integrators import BudgetError, require_budget, substep_count
+from observers.checks import ParameterError
+from observers.state import StateError, capture, restore
+
+
+def definitions() -> dict[str, tuple[float, object]]:
+    """``kind -> (scenario step, definition)`` of the scenarios (the first of each kind)."""
+    found = {}
+    for scenario in SCENARIOS.values():
+        for item in scenario.definitions():
+            definition = item[0] if isinstance(item, tuple) else item
+            found.setdefault(definition.kind, (scenario.step, definition))
+    return found
+
+
+DEFINITIONS = definitions()
+
+
+def new_block(kind: str) -> Block:
+    _, d = DEFINITIONS[kind]
+    return create_block(d.kind, {p.name: p.array(p.value) for p in d.parameters}, d.options, d.kind_module)
+
+
+def inputs(block: Block, k: int, h: float) -> dict[str, Segment]:
+    t = k * h
+    return {name: Segment(np.full(size, 0.1 * np.sin(0.7 * t + i)), np.full(size, 0.07 * np.cos(0.7 * t + i)))
+            for i, (name, size) in enumerate(sorted(block.input_sizes.items()))}
+
+
+def arrays_of(tree, path="state"):
+    if isinstance(tree, dict):
+        for key, value in tree.items():
+            yield from arrays_of(value, f"{path}.{key}")
+    elif isinstance(tree, (list, tuple)):
+        for i, value in enumerate(tree):
+            yield from arrays_of(value, f"{path}[{i}]")
+    elif isinstance(tree, np.ndarray):
+        yield path, tree
+
+
+def mutated_in_place(block: Block, step) -> list[str]:
+    """Paths of the state arrays that ``step()`` changed in place (instead of rebinding)."""
+    tree = block.get_state()
+    copies = {path: array.copy() for path, array in arrays_of(tree)}
+    step()
+    return [path for path, array in arrays_of(tree) if not np.array_equal(array, copies[path], equal_nan=True)]
+
+
+def outputs_of(block: Block, t: float) -> dict[str, np.ndarray]:
+    return block.outputs(t, {name: np.full(size, 0.1) for name, size in block.input_sizes.items()})
+
+
+@pytest.mark.parametrize("kind", sorted(DEFINITIONS))
+def test_no_block_writes_into_its_state_arrays(kind):
+    block = new_block(kind)
+    h = DEFINITIONS[kind][0]
+    for k in range(25):
+        assert mutated_in_place(block, lambda: block.advance(k * h, h, inputs(block, k, h))) == [], (kind, k)
+
+
+class _Bad(Block):
+    """A block that breaks the rule: it adds to its state array in place."""
+
+    def __init__(self):
+        self.x = np.zeros(2)
+        self.input_sizes, self.output_sizes = {}, {"x": 2}
+
+    def outputs(self, t, inputs):
+        return {"x": self.x.copy()}
+
+    def advance(self, t, h, inputs):
+        self.x += h
+
+
+def test_the_in_place_check_catches_a_block_that_breaks_the_rule():
+    block = _Bad()
+    assert mutated_in_place(block, lambda: block.advance(0.0, 1.0, {})) == ["state.x"]
+
+
+@pytest.mark.parametrize("kind", sorted(DEFINITIONS))
+def test_a_captured_state_is_a_rollback_and_fits_a_fresh_block(kind):
+    block, h = new_block(kind), DEFINITIONS[kind][0]
+    for k in range(5):
+        block.advance(k * h, h, inputs(block, k, h))
+    saved, expected = block.get_state(), outputs_of(block, 5 * h)
+    for k in range(5, 12):
+        block.advance(k * h, h, inputs(block, k, h))
+    block.set_state(saved, check=False)                     # the rollback of a refused step
+    after = outputs_of(block, 5 * h)
+    for name in expected:
+        np.testing.assert_array_equal(after[name], expected[name], err_msg=name)
+    continued = []
+    for k in range(5, 12):
+        block.advance(k * h, h, inputs(block, k, h))
+        continued.append(outputs_of(block, (k + 1) * h))
+    fresh = new_block(kind)                                  # a state of a later time, checked
+    fresh.set_state(copy.deepcopy(saved))
+    for k, expected_k in zip(range(5, 12), continued):
+        fresh.advance(k * h, h, inputs(fresh, k, h))
+        for name, value in outputs_of(fresh, (k + 1) * h).items():
+            np.testing.assert_array_equal(value, expected_k[name], err_msg=name)
+
+
+# --------------------------------------------------------------------------- restore checks
+class _Inner:
+    def __init__(self):
+        self.history = deque([np.zeros(2)] * 3, maxlen=3)
+        self.pair = (1.0, np.ones(2))
+        self.delta = np.float64(0.5)
+        self.switch_time = None
+
+    state_optional = {"switch_time": None}
+
+
+class _Outer(Block):
+    not_state = ("model",)
+    state_optional = {"stage": "_blank_stage"}
+
+    def __init__(self):
+        self.model = lambda y: y              # not state: a callable
+        self.x = np.zeros(3)
+        self.count = 0
+        self.inner = _Inner()
+        self.stage = None
+        self.input_sizes, self.output_sizes = {}, {"x": 3}
+
+    def _blank_stage(self):
+        return _Inner()
+
+
+def test_capture_and_restore_keep_containers_numpy_scalars_and_optional_objects():
+    source = _Outer()
+    source.x = np.arange(3.0)
+    source.count = 7
+    source.inner.history.append(np.full(2, 5.0))
+    source.inner.switch_time = 1.5
+    source.stage = _Inner()
+    source.stage.pair = (2.0, np.full(2, 3.0))
+    tree = capture(source)
+    assert "model" not in tree
+    target = _Outer()
+    restore(target, copy.deepcopy(tree))
+    assert isinstance(target.inner.history, deque) and target.inner.history.maxlen == 3
+    np.testing.assert_array_equal(target.inner.history[-1], [5.0, 5.0])
+    assert isinstance(target.inner.delta, np.float64) and target.inner.switch_time == 1.5
+    assert isinstance(target.stage, _Inner) and target.stage.pair[0] == 2.0   # built by _blank_stage
+    restore(target, capture(_Outer()))                      # and back to "not started"
+    assert target.stage is None and target.inner.switch_time is None
+
+
+@pytest.mark.parametrize("change, message", [
+    (lambda tree: tree.pop("count"), "missing count"),
+    (lambda tree: tree.update({"evil": "os.system"}), "unknown 'evil'"),
+    (lambda tree: tree.update({"x": np.zeros(4)}), "_Outer.x: expected an array float64[3], got an array float64[4]"),
+    (lambda tree: tree.update({"x": None}), "_Outer.x: expected an array"),
+    (lambda tree: tree.update({"count": 1.5}), "_Outer.count: expected an int, got a float"),
+    (lambda tree: tree["inner"].update({"history": [np.zeros(2)] * 2}), "history: expected a deque of 3"),
+    (lambda tree: tree.update({"inner": [1, 2]}), "_Outer.inner: expected the attributes of a _Inner"),
+    (lambda tree: tree.update({"stage": {"history": 1}}), "_Outer.stage: attributes do not match"),
+])
+def test_restore_checks_everything_first_and_names_the_mismatch(change, message):
+    target = _Outer()
+    target.x = np.arange(3.0)
+    tree = capture(_Outer())
+    change(tree)
+    with pytest.raises(StateError, match=message.replace("[", r"\[").replace("]", r"\]").replace("(", r"\(")):
+        restore(target, tree)
+    np.testing.assert_array_equal(target.x, [0.0, 1.0, 2.0])   # nothing changed
+
+
+def test_capture_refuses_what_is_not_state_data():
+    block = _Outer()
+    block.callback = print
+    with pytest.raises(StateError, match="_Outer.callback: a builtin_function_or_method is not state data"):
+        capture(block)
+
+
+# --------------------------------------------------------------------------- the sub-step budget
+def test_substep_count_refuses_before_any_work_beyond_the_budget():
+    assert substep_count(1e-3, 1e-3) == 1
+    assert substep_count(1.0, 1e-3, budget=1000) == 1000
+    assert substep_count(1.0, rate=50.0, max_change=0.01, budget=10_000) == 5000
+    with pytest.raises(BudgetError, match=r"the step h = 1e\+06 needs 1e\+09 sub-steps of at most "
+                                          r"max_substep = 0.001, more than substep_budget = 10000"):
+        substep_count(1e6, 1e-3)
+    for h in (float("nan"), float("inf")):
+        with pytest.raises(BudgetError, match="substep_budget"):
+            substep_count(h, 1e-3)
+    with pytest.raises(BudgetError, match="changing at"):
+        substep_count(1.0, 1.0, rate=float("nan"), max_change=0.1)
+    for bad in (0, -1, 2.5, float("nan"), "many"):
+        with pytest.raises(ParameterError, match="substep_budget: expected an integer >= 1"):
+            require_budget(bad)
