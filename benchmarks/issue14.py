@@ -24,10 +24,10 @@ minimum of ``--repeats`` interleaved repeats (every case of a section is run onc
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import os
 import re
 import resource
+import runpy
 import shutil
 import subprocess
 import sys
@@ -98,18 +98,19 @@ class InProcessSlaves:
         self.slaves = {}
         for name, inst in session.instances.items():
             resources = Path(inst.slave.unzipDirectory) / "resources"
-            model = inst.description.coSimulation.modelIdentifier
-            spec = importlib.util.spec_from_file_location(f"_bench_{name}_{model}", resources / f"{model}.py")
-            module = importlib.util.module_from_spec(spec)
-            spec.loader.exec_module(module)
-            self.slaves[name] = (getattr(module, model), str(resources))
+            record = dict(line.split("=", 1) for line in (resources / "obsfmu_native.txt").read_text().splitlines()
+                          if "=" in line and not line.startswith("#"))
+            bootstrap = runpy.run_path(str(resources / "obsfmu_bootstrap.py"), run_name="obsfmu_bootstrap")
+            cls = bootstrap["load_slave_class"](str(resources), record["package"], record["slave_module"],
+                                                record["slave_class"])
+            self.slaves[name] = (cls, str(resources))
 
     def run(self, stop_time: float, step: float, starts: dict) -> None:
         instances = list(self.session.instances.values())
         slaves = {}
         for inst in instances:
             cls, resources = self.slaves[inst.name]
-            slave = cls(instance_name=inst.name, resources=resources, visible=False)
+            slave = cls(instance_name=inst.name, resources=resources, visible=False, logger=None)
             for variable, value in starts.get(inst.name, {}).items():
                 slave.set_real([inst.variable(variable).valueReference], [float(value)])
             slave.setup_experiment(0.0)

@@ -115,7 +115,14 @@ class PolynomialInputs:
         if int(degree) != degree or not 1 <= degree <= 5:
             raise ParameterError(f"input_degree: expected an integer from 1 to 5, got {degree!r}")
         self.degree = int(degree)
-        self.samples: dict[str, tuple[tuple[float, ...], tuple[float, ...]]] = samples or {}  # name -> (t, value)
+        #: name -> (count, times, values): the last ``count`` of ``degree + 1`` entries are the samples.
+        #: A fixed layout (zeros in front), so that an FMU state restores into any history of the block.
+        self.samples: dict[str, tuple[int, tuple[float, ...], tuple[float, ...]]] = samples or {}
+
+    def history(self, name: str) -> tuple[tuple[float, ...], tuple[float, ...]]:
+        """The samples of input ``name``: ``(times, values)``, oldest first."""
+        count, times, values = self.samples.get(name, (0, (), ()))
+        return times[len(times) - count:], values[len(values) - count:]
 
     def step(self, t: float, h: float, segments) -> tuple[dict[str, InputPolynomial], "PolynomialInputs"]:
         """The inputs over ``[t, t + h]`` and the history after the step (this object is unchanged);
@@ -125,7 +132,7 @@ class PolynomialInputs:
             start, slope = float(segment.start[0]), float(segment.slope[0])
             if not (math.isfinite(start) and math.isfinite(slope)):
                 raise SignalError(f"input {name}: not finite ({start}, slope {slope})")
-            times, values = self._history(name, t, start)
+            times, values = self._continued(name, t, start)
             end = start + h * slope
             times, values = times[-self.degree:], values[-self.degree:]
             if len(times) == 1:
@@ -135,12 +142,13 @@ class PolynomialInputs:
                 points = values + (end,)
                 polynomials[name] = InputPolynomial(tuple(
                     sum(m * v for m, v in zip(row, points)) / h ** k for k, row in enumerate(rows)), h)
-            samples[name] = (times + (t + h,), values + (end,))
+            padding = (0.0,) * (self.degree - len(times))
+            samples[name] = (len(times) + 1, padding + times + (t + h,), padding + values + (end,))
         return polynomials, PolynomialInputs(self.degree, samples)
 
-    def _history(self, name: str, t: float, start: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    def _continued(self, name: str, t: float, start: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
         """The samples before ``t`` that a segment starting at ``start`` continues, ``t`` included."""
-        times, values = self.samples.get(name, ((), ()))
+        times, values = self.history(name)
         continues = bool(times) and (abs(times[-1] - t) <= 1e-9 * max(1.0, abs(t))
                                      and abs(values[-1] - start) <= 1e-12 * max(1.0, abs(start), abs(values[-1])))
         return (times, values) if continues else ((t,), (start,))

@@ -140,7 +140,7 @@ def test_the_input_history_is_rebound_not_changed():
     history = PolynomialInputs(3)
     before = dict(history.samples)
     _, after = history.step(0.0, 0.1, {"y": Segment.between([1.0], [2.0], 0.1)})
-    assert history.samples == before and after is not history and after.samples["y"] == ((0.0, 0.1), (1.0, 2.0))
+    assert history.samples == before and after is not history and after.history("y") == ((0.0, 0.1), (1.0, 2.0))
     with pytest.raises(SignalError, match="input y: not finite"):
         history.step(0.0, 0.1, {"y": Segment([np.nan], [0.0])})
     with pytest.raises(ParameterError, match="input_degree: expected an integer from 1 to 5"):
