@@ -160,8 +160,8 @@ class StopRequest:
 
 # ----------------------------------------------------------------------------- shared steps
 def _validate(path: Path) -> list[str]:
-    from fmpy.validation import validate_fmu
-    return validate_fmu(str(path))
+    from .validation import validate_fmu
+    return validate_fmu(path)
 
 
 def _report_built(paths) -> int:
@@ -175,12 +175,9 @@ def _report_built(paths) -> int:
 
 
 def _build_all(build_dir: Path, fmi_version: int = 2) -> list[Path]:
-    from .scenarios import SCENARIOS, ensure_fmus
-    paths: list[Path] = []
-    for scenario in SCENARIOS.values():
-        paths += [p for p in ensure_fmus(scenario, build_dir, force=True, fmi_version=fmi_version).values()
-                  if p not in paths]
-    return paths
+    """Every distinct FMU of the scenarios, each built once (ltv-ls and ltv-ls-bounded share theirs)."""
+    from .scenarios import SCENARIOS, ensure_all
+    return list(ensure_all(SCENARIOS.values(), build_dir, force=True, fmi_version=fmi_version).values())
 
 
 def _figure_paths(option: str, path: str) -> list[Path]:

@@ -13,13 +13,25 @@ Example (the ship of paper 002, shipped as ``fmus/scenarios/ship/ship.toml``)::
     state_units = ["rad", "rad/s"] # optional (also input_units, output_units)
     fmu = true                     # also build the plant FMU (default true)
 
-    [observer]                     # exactly one of: poles, t_settle, N
+    [observer]                     # exactly one of: poles, t_settle, shift, N
     t_settle = 0.15                # settling time of the estimation error, s
     form = "binomial"              # or "butterworth"
     x_hat0 = [0, 0]
 
     [controller]                   # optional: state feedback u = -K x_hat + r
-    t_settle = 0.3                 # or poles = [...] or K = [[...]]
+    t_settle = 0.3                 # or poles = [...], shift = ... or K = [[...]]
+
+Poles are numbers or ``[re, im]`` pairs (``poles = [[-2, 3], [-2, -3], -5]``);
+``shift = s`` asks for the plant's own eigenvalues moved left by ``s`` -- the
+well-conditioned choice for plants of high order (a 50-state flexible
+structure: every mode damped, see ``docs/DEVELOPING.md``).
+
+Designed gains are checked twice (:mod:`observers.modal`): the closed loop
+must have the requested poles to 1 % (relative) as computed in double
+precision -- the binomial form of order 20 (a 20-fold pole) fails, its
+eigenvalues scatter by 36 % -- and must not amplify an initial error more
+than 1e8 times before it decays (fast poles on a chain of integrators need
+gains of 1e20).  Either failure is refused with the reason.
 
 Every error names the field it comes from (``plant.A: expected a square
 matrix ...``); dimensions, finiteness, observability/controllability and the
@@ -34,10 +46,10 @@ from pathlib import Path
 
 import numpy as np
 
-from observers.checks import ParameterError, as_matrix, as_vector, require_hurwitz
+from observers.checks import ParameterError, as_matrix, as_vector, require_hurwitz, require_positive
 from observers.lti_model import StateSpace
-from observers.modal import (controllability_matrix, desired_poles, observability_matrix, observer_gain,
-                             place)
+from observers.modal import (MAX_TRANSIENT_GROWTH, desired_poles, is_controllable, is_observable, observer_gain,
+                             place, transient_growth)
 from observers.standard_forms import FORMS
 
 from .definition import FmuDefinition, valid_identifier
@@ -53,8 +65,8 @@ __all__ = ["LinearDesign", "load_config", "design_from_config"]
 _SECTIONS = {
     "": {"name", "description", "plant", "observer", "controller"},
     "plant": {"A", "B", "C", "D", "x0", "state_units", "input_units", "output_units", "fmu"},
-    "observer": {"poles", "t_settle", "form", "N", "x_hat0"},
-    "controller": {"poles", "t_settle", "form", "K"},
+    "observer": {"poles", "t_settle", "shift", "form", "N", "x_hat0"},
+    "controller": {"poles", "t_settle", "shift", "form", "K"},
 }
 
 
@@ -144,24 +156,65 @@ def _units(plant: dict, model: StateSpace) -> dict:
     return units
 
 
-def _gain(section: str, table: dict, n: int, gain_name: str, shape, designer):
-    """A gain given directly (checked) or designed from poles / t_settle."""
-    chosen = [key for key in ("poles", "t_settle", gain_name) if key in table]
+def _poles(name: str, values) -> np.ndarray:
+    """Poles from TOML: numbers, or ``[re, im]`` pairs for complex ones (TOML has no complex numbers)."""
+    if not isinstance(values, list) or not values:
+        raise ParameterError(f"{name}: expected a list of poles (numbers, or [re, im] pairs), got {values!r}")
+    poles = []
+    for i, value in enumerate(values):
+        pair = as_vector(f"{name}[{i + 1}]", value)
+        if pair.size > 2:
+            raise ParameterError(f"{name}[{i + 1}]: expected a number or an [re, im] pair, got {value!r}")
+        poles.append(complex(pair[0], pair[1] if pair.size == 2 else 0.0))
+    poles = np.array(poles)
+    return poles.real if not np.any(poles.imag) else poles
+
+
+def _shifted(name: str, A: np.ndarray, shift) -> np.ndarray:
+    """The plant's eigenvalues moved left by ``shift``: poles that keep the design well conditioned."""
+    shift = require_positive(name, shift)
+    eigenvalues = np.linalg.eigvals(A)
+    eigenvalues = np.where(np.abs(eigenvalues.imag) <= 1e-12 * max(1.0, np.abs(eigenvalues).max()),
+                           eigenvalues.real, eigenvalues)
+    return eigenvalues - shift
+
+
+def _gain(section: str, table: dict, model: StateSpace, gain_name: str, shape, designer):
+    """A gain given directly (checked: Hurwitz) or designed from poles / t_settle / shift.
+
+    A designed gain is also checked for transient growth (:func:`observers.modal.transient_growth`).
+    """
+    chosen = [key for key in ("poles", "t_settle", "shift", gain_name) if key in table]
     if len(chosen) != 1:
-        raise ParameterError(f"{section}: give exactly one of 'poles', 't_settle' or '{gain_name}', "
+        raise ParameterError(f"{section}: give exactly one of 'poles', 't_settle', 'shift' or '{gain_name}', "
                              f"got {chosen or 'none'}")
     form = table.get("form", "binomial")
     if form not in FORMS:
         raise ParameterError(f"{section}.form: unknown standard form {form!r}; choose one of {FORMS}")
     if gain_name in table:
         return as_matrix(f"{section}.{gain_name}", table[gain_name], shape=shape), None
+    n = model.n
     try:
-        poles = desired_poles(n, poles=table.get("poles"), t_settle=table.get("t_settle"), form=form,
-                              name=f"{section}.poles")
-        return designer(poles), poles
+        if "shift" in table:
+            poles = _shifted(f"{section}.shift", model.A, table["shift"])
+        else:
+            poles = desired_poles(n, poles=_poles(f"{section}.poles", table["poles"]) if "poles" in table else None,
+                                  t_settle=table.get("t_settle"), form=form, name=f"{section}.poles")
+        gain = designer(poles, f"{section}.poles")
     except ParameterError as exc:
         message = str(exc)
         raise ParameterError(message if message.startswith(section) else f"{section}.{message}") from None
+    return gain, poles
+
+
+def _require_bounded_transient(name: str, closed_loop: np.ndarray) -> None:
+    growth = transient_growth(closed_loop)
+    if growth > MAX_TRANSIENT_GROWTH:
+        raise ParameterError(
+            f"{name}: the designed closed loop amplifies an initial error up to {growth:.2g} times before it "
+            f"decays (max_t |exp(M t)|, accepted: {MAX_TRANSIENT_GROWTH:g}); its rounding errors grow as much, "
+            "so the estimate would be meaningless; choose slower poles or poles closer to the plant's own "
+            "('shift')")
 
 
 def design_from_config(config: dict) -> LinearDesign:
@@ -188,12 +241,14 @@ def design_from_config(config: dict) -> LinearDesign:
             raise ParameterError(f"plant.{key}: missing")
     model = StateSpace.checked(plant["A"], plant.get("B"), plant["C"], plant.get("D"), prefix="plant.")
     n = model.n
-    if np.linalg.matrix_rank(observability_matrix(model.A, model.C)) < n:
+    if not is_observable(model.A, model.C):
         raise ParameterError("plant.C: the pair (plant.A, plant.C) is not observable; "
                              "no observer can reconstruct the state")
-    N, observer_poles = _gain("observer", observer, n, "N", (n, model.p),
-                              lambda poles: observer_gain(model.A, model.C, poles))
+    N, observer_poles = _gain("observer", observer, model, "N", (n, model.p),
+                              lambda poles, name: observer_gain(model.A, model.C, poles, name))
     require_hurwitz("observer.N (A - N C)", model.A - N @ model.C)
+    if observer_poles is not None:
+        _require_bounded_transient("observer.poles", model.A - N @ model.C)
     if observer_poles is None:
         observer_poles = np.linalg.eigvals(model.A - N @ model.C)
 
@@ -203,12 +258,14 @@ def design_from_config(config: dict) -> LinearDesign:
         _check_keys("controller", controller)
         if model.m == 0:
             raise ParameterError("controller: the plant has no input (plant.B missing)")
-        if np.linalg.matrix_rank(controllability_matrix(model.A, model.B)) < n:
+        if not is_controllable(model.A, model.B):
             raise ParameterError("plant.B: the pair (plant.A, plant.B) is not controllable; "
                                  "state feedback cannot place the poles")
-        K, controller_poles = _gain("controller", controller, n, "K", (model.m, n),
-                                    lambda poles: place(model.A, model.B, poles))
+        K, controller_poles = _gain("controller", controller, model, "K", (model.m, n),
+                                    lambda poles, name: place(model.A, model.B, poles, name))
         require_hurwitz("controller.K (A - B K)", model.A - model.B @ K)
+        if controller_poles is not None:
+            _require_bounded_transient("controller.poles", model.A - model.B @ K)
 
     build_plant = plant.get("fmu", True)
     if not isinstance(build_plant, bool):

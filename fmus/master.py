@@ -33,11 +33,22 @@ which returns a :class:`Result`).
 Re-use.  A :class:`Session` extracts and instantiates the FMUs once and runs
 the system as often as needed (``fmi2Reset`` between runs, new start values
 each time); :func:`cosimulate` is one run of a fresh session.
+
+Cost.  fmpy loads the FMUs and makes every call outside the stepping loop.
+Inside it, the four calls of a communication step (``fmi2SetReal``,
+``fmi2SetRealInputDerivatives``, ``fmi2DoStep``, ``fmi2GetReal``) go straight to
+the binary through ctypes functions with fixed argument types, on numpy
+buffers allocated once per run: inputs are gathered with one index array per
+instance and outputs are written by the FMU directly into the shared output
+vector -- no Python list, no per-call marshalling (fmpy's wrappers cost
+3-9 us per call, a direct call 0.1 us plus what the FMU does).
 """
 
 from __future__ import annotations
 
 import difflib
+import hashlib
+import os
 import shutil
 import sys
 import tempfile
@@ -45,6 +56,8 @@ import time as wallclock
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
+
+from ctypes import c_double, c_int, c_size_t, c_void_p
 
 import numpy as np
 from fmpy import extract, read_model_description
@@ -55,7 +68,7 @@ from fmpy import calloc, free
 from .result import Result
 
 __all__ = ["Component", "Connection", "System", "SimulationError", "Session", "Recorder", "MemoryRecorder",
-           "cosimulate", "ORDERS", "COUPLINGS"]
+           "cosimulate", "communication_points", "ORDERS", "COUPLINGS"]
 
 ORDERS = ("gauss-seidel", "jacobi", "adaptive")
 COUPLINGS = ("linear", "hold")
@@ -94,10 +107,42 @@ def _closest(name: str, candidates) -> str:
     return f"; did you mean {', '.join(close)}?" if close else ""
 
 
+#: extracted FMUs, by content (``OBSFMU_CACHE`` overrides); the newest are kept
+EXTRACT_CACHE = Path(os.environ.get("OBSFMU_CACHE", Path.home() / ".cache" / "obsfmu")) / "extracted"
+EXTRACT_CACHE_SIZE = 64
+
+
+def _extracted(fmu: Path) -> Path:
+    """The FMU unzipped once per content (sha256) into :data:`EXTRACT_CACHE` and reused.
+
+    A run used to unzip every FMU into a fresh directory (its bundled code: ~100 files) and
+    delete it afterwards -- 0.15 s of every ``obsfmu run``, plus compiling the bundled modules
+    again each time.  Entries are written to a temporary sibling and renamed (concurrent runs
+    never see a partial one); beyond :data:`EXTRACT_CACHE_SIZE` the least recently used go.
+    """
+    digest = hashlib.sha256(Path(fmu).read_bytes()).hexdigest()[:32]
+    target = EXTRACT_CACHE / digest
+    if target.is_dir():
+        os.utime(target)
+        return target
+    EXTRACT_CACHE.mkdir(parents=True, exist_ok=True)
+    partial = Path(tempfile.mkdtemp(prefix=f".{digest}.", dir=EXTRACT_CACHE))
+    extract(str(fmu), unzipdir=str(partial))
+    try:
+        os.replace(partial, target)
+    except OSError:                      # another run extracted it meanwhile
+        shutil.rmtree(partial, ignore_errors=True)
+    entries = sorted((e for e in EXTRACT_CACHE.iterdir() if not e.name.startswith(".")),
+                     key=lambda e: e.stat().st_mtime, reverse=True)
+    for stale in entries[EXTRACT_CACHE_SIZE:]:
+        shutil.rmtree(stale, ignore_errors=True)
+    return target
+
+
 class _Instance:
     """An instantiated FMU with name -> value-reference maps and an output cache."""
 
-    def __init__(self, component: Component, unzip_root: Path, log):
+    def __init__(self, component: Component, log):
         self.name = component.name
         fmu = Path(component.fmu)
         if not fmu.is_file():
@@ -112,7 +157,7 @@ class _Instance:
         capabilities = self.description.coSimulation
         self.can_interpolate = bool(capabilities.canInterpolateInputs)
         self.can_save_state = bool(capabilities.canGetAndSetFMUstate)
-        directory = extract(str(fmu), unzipdir=str(unzip_root / self.name))
+        directory = str(_extracted(fmu))
         self._log = log
         self.slave = FMU2Slave(guid=self.description.guid, unzipDirectory=directory,
                                modelIdentifier=self.description.coSimulation.modelIdentifier,
@@ -120,7 +165,26 @@ class _Instance:
         self.output_values = np.zeros(len(self.outputs))
         self.input_vrs: list[int] = []
         self.input_sources: np.ndarray = np.zeros(0, dtype=int)
+        self.stepped_before: np.ndarray = np.zeros(0, dtype=bool)
         self.instantiated = False
+        self.raw = _RawCalls(self.slave.dll)
+
+    def prepare(self) -> None:
+        """Buffers of the stepping loop (after wiring): value references, input values and slopes."""
+        self._input_vr = np.array(self.input_vrs, dtype=np.uint32)
+        self._output_vr = np.array(self.output_vrs, dtype=np.uint32)
+        self._orders = np.ones(len(self.input_vrs), dtype=np.int32)
+        self.input_values = np.zeros(len(self.input_vrs))
+        self.input_slopes = np.zeros(len(self.input_vrs))
+        self.stepped_index = np.flatnonzero(self.stepped_before)
+        self.stepped_sources = self.input_sources[self.stepped_index]
+        self._pointers = (self._input_vr.ctypes.data, self._output_vr.ctypes.data, self._orders.ctypes.data,
+                          self.input_values.ctypes.data, self.input_slopes.ctypes.data)
+
+    def bind_outputs(self, view: np.ndarray) -> None:
+        """Make ``view`` (a slice of the shared output vector) the place ``fmi2GetReal`` writes to."""
+        self.output_values = view
+        self._output_address = view.ctypes.data
 
     def variable(self, name: str):
         try:
@@ -157,25 +221,61 @@ class _Instance:
         else:
             raise SimulationError(f"{self.name}.{name}: type {variable.type} cannot be set")
 
-    def refresh_outputs(self) -> None:
-        if self.output_vrs:
-            self.output_values[:] = self.slave.getReal(self.output_vrs)
+    def refresh_outputs(self) -> int:
+        """``fmi2GetReal`` of every output into :attr:`output_values`; the FMI status."""
+        if not self.output_vrs:
+            return 0
+        return self.raw.get_real(self.slave.component, self._pointers[1], len(self.output_vrs),
+                                 self._output_address)
 
-    def set_inputs(self, values: np.ndarray, derivatives: np.ndarray | None = None) -> None:
-        """Inputs at the current time, and their first derivatives over the next step."""
-        if self.input_vrs:
-            self.slave.setReal(self.input_vrs, values.tolist())
-            if derivatives is not None and self.can_interpolate:
-                self.slave.setRealInputDerivatives(self.input_vrs, [1] * len(self.input_vrs), derivatives.tolist())
+    def set_inputs(self, derivatives: bool = False) -> int:
+        """``fmi2SetReal`` of :attr:`input_values` (and, with ``derivatives``, ``fmi2SetRealInputDerivatives``
+        of :attr:`input_slopes`); the worst FMI status."""
+        count = len(self.input_vrs)
+        if not count:
+            return 0
+        vr, _, orders, values, slopes = self._pointers
+        status = self.raw.set_real(self.slave.component, vr, count, values)
+        if derivatives and self.can_interpolate and status <= _WARNING:
+            status = max(status, self.raw.set_derivatives(self.slave.component, vr, count, orders, slopes))
+        return status
+
+    def do_step(self, t: float, h: float) -> int:
+        return self.raw.do_step(self.slave.component, t, h, 1)
 
 
-def _instance(component: Component, unzip_root: Path, log):
-    """An :class:`_Instance`, or for an FMI 3.0 FMU the adapter with its interface (fmus/fmi3/instance.py)."""
+_WARNING = 1  #: worst FMI status that lets a run go on
+
+
+class _RawCalls:
+    """The FMI functions of the stepping loop, called on the binary directly (fixed argument types)."""
+
+    def __init__(self, dll):
+        pointer, size = c_void_p, c_size_t
+        self.set_real = self._function(dll, "fmi2SetReal", [pointer, pointer, size, pointer])
+        self.set_derivatives = self._function(dll, "fmi2SetRealInputDerivatives",
+                                              [pointer, pointer, size, pointer, pointer])
+        self.do_step = self._function(dll, "fmi2DoStep", [pointer, c_double, c_double, c_int])
+        self.get_real = self._function(dll, "fmi2GetReal", [pointer, pointer, size, pointer])
+
+    @staticmethod
+    def _function(dll, name, argtypes):
+        function = dll[name]          # a new function object: fmpy's own keeps its argument types
+        function.argtypes, function.restype = argtypes, c_int
+        return function
+
+
+def _instance(component: Component, log):
+    """An :class:`_Instance`, or for an FMI 3.0 FMU the adapter with its interface (fmus/fmi3/instance.py).
+
+    Both serve the fast path of :class:`_Stepper` (``prepare``, ``bind_outputs``, ``set_inputs``,
+    ``do_step``, ``refresh_outputs`` returning FMI statuses) and are extracted once per content.
+    """
     from .fmi3.instance import Fmi3Instance, fmi_version_of
     fmu = Path(component.fmu)
     if fmu.is_file() and fmi_version_of(fmu) == 3:
-        return Fmi3Instance(component, extract(str(fmu), unzipdir=str(unzip_root / component.name)), log)
-    return _Instance(component, unzip_root, log)
+        return Fmi3Instance(component, _extracted(fmu), log)
+    return _Instance(component, log)
 
 
 class _Logger:
@@ -264,6 +364,7 @@ def _wire(instances: dict[str, _Instance], connections: list[Connection]) -> Non
         inst.input_vrs = [vr for vr, _, _ in wires[name]]
         inst.input_sources = np.array([source for _, source, _ in wires[name]], dtype=int)
         inst.stepped_before = np.array([producer < rank[name] for _, _, producer in wires[name]], dtype=bool)
+        inst.prepare()
 
 
 def _split(path: str) -> tuple[str, str]:
@@ -280,60 +381,79 @@ def _call(inst: _Instance, logger: _Logger, what: str, function, *args):
         raise SimulationError(f"{inst.name}: {what} failed ({exc}); FMU says: {logger.last(inst.name)}") from None
 
 
+_STATUS_WORDS = ("ok", "warning", "discard", "error", "fatal", "pending")
+
+
+def _check(inst: _Instance, logger: _Logger, what, status: int) -> None:
+    """Raise :class:`SimulationError` for a status worse than warning (``what`` may be a callable)."""
+    if status > _WARNING:
+        word = _STATUS_WORDS[status] if 0 <= status < len(_STATUS_WORDS) else str(status)
+        what = what() if callable(what) else what
+        raise SimulationError(f"{inst.name}: {what} failed (status {status} ({word})); "
+                              f"FMU says: {logger.last(inst.name)}")
+
+
 class _Stepper:
     """One communication round of all instances, in Gauss-Seidel or Jacobi order.
 
-    Holds the shared output array (``live``), the outputs at the current
-    communication point (``now``) and at the previous one (``before``, ``h_before``)
-    -- the history the linear coupling extrapolates from.
+    Holds the shared output array (``live``; every instance's ``fmi2GetReal`` writes its
+    slice), the outputs at the current communication point (``now``) and at the previous one
+    (``before``, ``h_before``) -- the history the linear coupling extrapolates from.
     """
 
     def __init__(self, instances: dict[str, _Instance], logger: _Logger, jacobi: bool, linear: bool):
         self.instances, self.logger, self.jacobi, self.linear = instances, logger, jacobi, linear
+        self.order = list(instances.values())
         self.live = np.zeros(sum(len(inst.outputs) for inst in instances.values()))
         offset = 0
-        for inst in instances.values():
-            inst.output_values = self.live[offset:offset + len(inst.outputs)]  # a view: refreshed in place
+        for inst in self.order:
+            inst.bind_outputs(self.live[offset:offset + len(inst.outputs)])  # a view: written in place
             offset += len(inst.outputs)
         self.now = self.live.copy()
         self.before: np.ndarray | None = None
         self.h_before = 0.0
-        self.feedthrough = [inst for inst in instances.values() if inst.feedthrough]
+        self.feedthrough = [inst for inst in self.order if inst.feedthrough]
 
     def settle(self, passes: int) -> None:
         """Propagate outputs to inputs until direct-feedthrough chains are consistent."""
         for _ in range(passes):
-            for inst in self.instances.values():
-                _call(inst, self.logger, "setting inputs", inst.set_inputs, self.live[inst.input_sources])
-                _call(inst, self.logger, "reading outputs", inst.refresh_outputs)
+            for inst in self.order:
+                inst.input_values[:] = self.live[inst.input_sources]
+                _check(inst, self.logger, "setting inputs", inst.set_inputs())
+                _check(inst, self.logger, "reading outputs", inst.refresh_outputs())
 
     def mark_communication_point(self) -> None:
         self.now = self.live.copy()
 
-    def _extrapolated_slopes(self) -> np.ndarray:
-        if self.before is None:
-            return np.zeros_like(self.now)
-        return (self.now - self.before) / self.h_before
-
     def round(self, t: float, h: float) -> None:
-        slopes = self._extrapolated_slopes() if self.linear else None
-        for inst in self.instances.values():
-            sources = inst.input_sources
-            if not self.linear:
-                values, derivatives = (self.now if self.jacobi else self.live)[sources], None
-            else:
-                values = self.now[sources]
-                derivatives = slopes[sources]
-                if not self.jacobi:  # producers already stepped: interpolate between t and t + h
-                    stepped = inst.stepped_before
-                    derivatives[stepped] = (self.live[sources][stepped] - values[stepped]) / h
-            _call(inst, self.logger, "setting inputs", inst.set_inputs, values, derivatives)
-            _call(inst, self.logger, f"doStep(t={t:.9g}, h={h:.3g})", inst.slave.doStep, t, h)
-            inst.refresh_outputs()
+        live, now, linear = self.live, self.now, self.linear
+        if linear:
+            slopes = (now - self.before) / self.h_before if self.before is not None else np.zeros_like(now)
+        source = now if linear or self.jacobi else live
+        for inst in self.order:
+            if inst.input_vrs:
+                sources = inst.input_sources
+                values = inst.input_values
+                values[:] = source[sources]
+                if linear:
+                    derivatives = inst.input_slopes
+                    derivatives[:] = slopes[sources]
+                    if not self.jacobi and inst.stepped_index.size:  # stepped already: interpolate t -> t + h
+                        derivatives[inst.stepped_index] = (live[inst.stepped_sources]
+                                                           - values[inst.stepped_index]) / h
+                status = inst.set_inputs(linear)
+                if status > _WARNING:
+                    _check(inst, self.logger, "setting inputs", status)
+            status = inst.do_step(t, h)
+            if status > _WARNING:
+                _check(inst, self.logger, lambda: f"doStep(t={t:.9g}, h={h:.3g})", status)
+            status = inst.refresh_outputs()
+            if status > _WARNING:
+                _check(inst, self.logger, "reading outputs", status)
         if self.jacobi and self.feedthrough:
             self.settle(len(self.feedthrough))
-        self.before, self.h_before = self.now, h
-        self.now = self.live.copy()
+        self.before, self.h_before = now, h
+        self.now = live.copy()
 
     def probe_initial_slopes(self, t: float, delta: float) -> None:
         """Estimate the outputs' slopes at the first point by a tiny held step, then roll back.
@@ -353,18 +473,18 @@ class _Stepper:
 
     # -- rollback (adaptive master)
     def save(self):
-        states = [_call(inst, self.logger, "getFMUstate", inst.slave.getFMUstate) for inst in self.instances.values()]
+        states = [_call(inst, self.logger, "getFMUstate", inst.slave.getFMUstate) for inst in self.order]
         return states, self.live.copy(), self.now.copy(), None if self.before is None else self.before.copy(), self.h_before
 
     def restore(self, saved) -> None:
         states, live, now, before, h_before = saved
-        for inst, state in zip(self.instances.values(), states):
+        for inst, state in zip(self.order, states):
             _call(inst, self.logger, "setFMUstate", inst.slave.setFMUstate, state)
         self.live[:] = live
         self.now, self.before, self.h_before = now.copy(), None if before is None else before.copy(), h_before
 
     def free(self, saved) -> None:
-        for inst, state in zip(self.instances.values(), saved[0]):
+        for inst, state in zip(self.order, saved[0]):
             inst.slave.freeFMUstate(state)
 
 
@@ -389,20 +509,24 @@ class Recorder:
 
 
 class MemoryRecorder(Recorder):
-    """Keeps every point in memory and returns a :class:`Result`."""
+    """Keeps every point in memory (a table that doubles when full) and returns a :class:`Result`."""
 
     def begin(self, columns: list[str]) -> None:
         super().begin(columns)
-        self.times: list[float] = []
-        self.rows: list[np.ndarray] = []
+        self._count = 0
+        self._table = np.empty((1024, len(self.columns) + 1))
 
     def record(self, t: float, values: np.ndarray) -> None:
-        self.times.append(float(t))
-        self.rows.append(np.array(values, dtype=float))
+        if self._count == len(self._table):
+            self._table = np.concatenate([self._table, np.empty_like(self._table)])
+        row = self._table[self._count]
+        row[0] = t
+        row[1:] = values
+        self._count += 1
 
     def result(self) -> Result:
-        values = np.array(self.rows) if self.rows else np.zeros((0, len(self.columns)))
-        return Result(np.array(self.times), list(self.columns), values.reshape(len(self.times), len(self.columns)))
+        table = self._table[:self._count]
+        return Result(table[:, 0].copy(), list(self.columns), table[:, 1:].copy())
 
 
 def _check_run_settings(stop_time, step, order, start_time, coupling, tolerance) -> None:
@@ -439,12 +563,11 @@ class Session:
             raise SimulationError(f"components: instance names must be unique, got {names}")
         self.system = system
         self.logger = _Logger(echo_log)
-        self._unzip_root = Path(tempfile.mkdtemp(prefix="obsfmu_run_"))
         self.instances: dict[str, _Instance] = {}
         self._fresh = True
         try:
             for component in system.components:
-                self.instances[component.name] = _instance(component, self._unzip_root, self.logger)
+                self.instances[component.name] = _instance(component, self.logger)
             _wire(self.instances, system.connections)
             for inst in self.instances.values():
                 inst.slave.instantiate(callbacks=self.logger.callbacks, loggingOn=True)
@@ -461,7 +584,7 @@ class Session:
         self.close()
 
     def close(self) -> None:
-        """Free the instances and delete the extracted FMUs (idempotent)."""
+        """Free the instances (idempotent); the extracted FMUs stay in the cache (:func:`_extracted`)."""
         for inst in self.instances.values():
             try:
                 if getattr(inst, "instantiated", False):
@@ -471,12 +594,11 @@ class Session:
             except Exception:
                 pass
         self.instances = {}
-        shutil.rmtree(self._unzip_root, ignore_errors=True)
 
     def run(self, stop_time: float, step: float, order: str = "gauss-seidel", start_time: float = 0.0,
             coupling: str = "linear", progress: bool = False, tolerance: float = 1e-6,
             start: dict[str, dict[str, float]] | None = None, recorder: Recorder | None = None,
-            should_stop=None, time_unit: str = "s"):
+            should_stop=None, time_unit: str = "s", ramp: int = 0):
         """One run from ``start_time`` to ``stop_time``; see :func:`cosimulate` for the parameters.
 
         ``start`` maps instance names to extra start values for this run only.
@@ -511,7 +633,7 @@ class Session:
         if order == "adaptive":
             _adaptive(stepper, start_time, stop_time, step, tolerance, 2 if coupling == "linear" else 1, loop)
         else:
-            _fixed(stepper, start_time, stop_time, step, loop)
+            _fixed(stepper, start_time, stop_time, step, loop, ramp)
         loop.progress.close(loop.steps)
         if not loop.interrupted:
             for inst in self.instances.values():
@@ -525,7 +647,7 @@ class Session:
 def cosimulate(system: System, stop_time: float, step: float, order: str = "gauss-seidel",
                start_time: float = 0.0, coupling: str = "linear", progress: bool = False,
                echo_log: bool = True, tolerance: float = 1e-6, recorder: Recorder | None = None,
-               should_stop=None, time_unit: str = "s"):
+               should_stop=None, time_unit: str = "s", ramp: int = 0):
     """Run ``system`` once from ``start_time`` to ``stop_time`` (a fresh :class:`Session`).
 
     Parameters
@@ -546,6 +668,12 @@ def cosimulate(system: System, stop_time: float, step: float, order: str = "gaus
         Asked after every communication point; true ends the run there.
     time_unit : str
         Unit of the models' time, for the progress bar.
+    ramp : int
+        Fixed-step orders: split the first step into ``h/2^ramp, h/2^ramp, h/2^(ramp-1), ..., h/2``
+        (every point recorded; the grid ``start_time + k step`` is kept).  The linear coupling has
+        no history on the first step, and blocks that rebuild their inputs from past samples
+        (:class:`observers.ltv_stepping.PolynomialInputs`) need a few: their start-up error,
+        which otherwise sets the accuracy of the whole run, shrinks with the first steps.
 
     Returns
     -------
@@ -557,7 +685,7 @@ def cosimulate(system: System, stop_time: float, step: float, order: str = "gaus
     with Session(system, echo_log=echo_log) as session:
         return session.run(stop_time, step, order=order, start_time=start_time, coupling=coupling,
                            progress=progress, tolerance=tolerance, recorder=recorder,
-                           should_stop=should_stop, time_unit=time_unit)
+                           should_stop=should_stop, time_unit=time_unit, ramp=ramp)
 
 
 def _initialize(instances, starts: dict[str, dict[str, float]], stepper: _Stepper, start_time, stop_time,
@@ -573,7 +701,7 @@ def _initialize(instances, starts: dict[str, dict[str, float]], stepper: _Steppe
     stepper.settle(len(instances) + 1)
     for inst in instances.values():
         _call(inst, logger, "exitInitializationMode", inst.slave.exitInitializationMode)
-        _call(inst, logger, "reading outputs", inst.refresh_outputs)
+        _check(inst, logger, "reading outputs", inst.refresh_outputs())
     if not np.all(np.isfinite(stepper.live)):
         bad = [inst.name for inst in instances.values() if not np.all(np.isfinite(inst.output_values))]
         raise SimulationError(f"initial outputs of {bad} are not finite; FMU says: "
@@ -602,11 +730,30 @@ class _Loop:
         return True
 
 
-def _fixed(stepper: _Stepper, start_time, stop_time, step, loop: _Loop) -> None:
+def communication_points(start_time: float, stop_time: float, step: float, ramp: int = 0):
+    """The steps of a fixed-step run, ``(t, h, t_next)``, generated as they come (bounded memory).
+
+    The grid ``start_time + k step`` (the last step shortened to land on ``stop_time``); with
+    ``ramp = r`` the first step is split into ``h/2^r, h/2^r, h/2^(r-1), ..., h/2`` (see
+    :func:`cosimulate`).  Every length is ``step`` times a power of two, so the FMUs' cached
+    discretisations are reused, and the ramp ends exactly on the grid.
+    """
     steps = int(np.ceil((stop_time - start_time) / step - 1e-9))
-    for k in range(steps):  # times computed as they come: no array of every step (bounded memory)
+    for k in range(steps):
         t, t_next = start_time + step * k, min(start_time + step * (k + 1), stop_time)
         h = step if k < steps - 1 else t_next - t  # one step length: cached discretisations
+        if k == 0 and ramp > 0:
+            offset = 0.0
+            for j in [ramp] + list(range(ramp, 0, -1)):
+                yield t + offset, h * 2.0 ** -j, t + (offset + h * 2.0 ** -j)
+                offset += h * 2.0 ** -j
+            continue
+        yield t, h, t_next
+
+
+def _fixed(stepper: _Stepper, start_time, stop_time, step, loop: _Loop, ramp: int = 0) -> None:
+    steps = int(np.ceil((stop_time - start_time) / step - 1e-9)) + (ramp if ramp > 0 else 0)
+    for k, (t, h, t_next) in enumerate(communication_points(start_time, stop_time, step, ramp)):
         stepper.round(t, h)
         loop.record(t_next, stepper.live)
         if not loop.accepted(t_next, (k + 1) / steps):
@@ -621,10 +768,20 @@ def _adaptive(stepper: _Stepper, start_time, stop_time, step, tolerance, order, 
     discretisations inside the FMUs.  At the smallest step a step that still misses the
     tolerance is accepted and counted -- the FMUs' own integration error is then the floor --
     and a warning says how many.
+
+    Rounding noise.  A truncation error shrinks like ``h^(order+1)`` when the step is shortened;
+    a difference between the two solutions that does not even halve when the step does is
+    rounding noise of that output (e.g. ``F_max = 1/lambda_min(P)`` of the paper-001 observer,
+    relative noise 1e-9), which no step length removes.  Its level relative to the output is
+    remembered per output (decaying by 0.1 % per accepted step) and tolerated, instead of
+    driving the step to its minimum for the rest of the run.
     """
     span = stop_time - start_time
     t, k, k_max = start_time, 0, int(np.floor(np.log2(span / 10 / step))) if span / 10 > step else 0
     forced = 0
+    noise = np.zeros_like(stepper.live)          # per-output rounding noise of the difference, relative
+    p = float(order)                             # the order of the error, learnt from rejected steps
+    tried: tuple[int, np.ndarray] | None = None  # the last rejected attempt at this t: (k, difference)
     if stepper.linear:
         stepper.probe_initial_slopes(t, step * 2.0**-20)
     while stop_time - t > 1e-12 * span:
@@ -637,22 +794,37 @@ def _adaptive(stepper: _Stepper, start_time, stop_time, step, tolerance, order, 
         middle = stepper.live.copy()
         stepper.round(t + h / 2, h / 2)
         fine = stepper.live
-        scale = tolerance * np.maximum(1.0, np.abs(fine)) * (h / span)
-        error = float(np.max(np.abs(fine - coarse) / (2**order - 1) / scale)) if fine.size else 0.0
+        difference = np.abs(fine - coarse)
+        magnitude = np.maximum(1.0, np.abs(fine))
+        if tried is not None:                    # shorter than the last try at this t: did it help?
+            levels = tried[0] - k
+            stalled = (difference / (2**p - 1) > magnitude * np.maximum(tolerance * (h / span), noise)) \
+                & (difference * 2.0 ** levels > tried[1])
+            noise[stalled] = 2.0 * difference[stalled] / (2**p - 1) / magnitude[stalled]
+            worst = int(np.argmax(np.where(stalled, 0.0, tried[1])))
+            if not stalled[worst] and difference[worst] > 0.0:      # the order the differences show
+                observed = np.log2(tried[1][worst] / difference[worst]) / levels - 1.0
+                p = float(np.clip(0.5 * (p + observed), order, 2 * order + 1))
+        difference = difference / (2**p - 1)
+        allowed = magnitude * np.maximum(tolerance * (h / span), noise)
+        error = float(np.max(difference / allowed)) if fine.size else 0.0
         if error <= 1.0 or k <= -halvings:
             forced += error > 1.0
             loop.record(t + h / 2, middle)
             loop.record(t + h, fine)
             t += h
             stepper.free(saved)
-            if error < 0.5**(order + 1):  # the doubled step is expected to pass
+            noise *= 0.999
+            tried = None
+            if error < 0.5**(p + 1):      # the doubled step is expected to pass
                 k = min(k + 1, k_max)
             if not loop.accepted(t, (t - start_time) / span):
                 break
         else:
             stepper.restore(saved)
             stepper.free(saved)
-            k = max(k - max(1, int(np.ceil(np.log2(error) / order))), -halvings)
+            tried = (k, difference * (2**p - 1))
+            k = max(k - max(1, int(np.ceil(np.log2(error) / p))), -halvings)
     if forced:
         warnings.warn(f"adaptive master: {forced} of {loop.steps} steps at the smallest step "
                       f"({step * 2.0**-halvings:.3g}) missed the tolerance {tolerance:g}", RuntimeWarning, stacklevel=3)

@@ -193,8 +193,12 @@ class BlockSlave(Fmi2Slave):
         self._snapshot: tuple[dict, Leaves] | None = None   # the block's state now, checked (rollback point)
         self._last_inputs: dict[str, tuple[np.ndarray, float]] = {}
         self._derivatives: dict[str, np.ndarray] = {}  # first input derivatives for the next step
+        self._derivative_store = {p.name: np.zeros(p.size) for p in definition.inputs}  # reused (one per port)
         self._input_elements: dict[int, tuple[str, int, str]] = {}  # value reference -> (port, index, name)
         self._element_names = {p.name: p.element_names for p in definition.inputs}
+        self._output_offsets: dict[int, int] = {}    # output value reference -> position in the flat outputs
+        self._output_plans: dict[tuple, np.ndarray | None] = {}   # fmi2GetReal's vrs -> positions (None: not all outputs)
+        self._flat: tuple[dict | None, np.ndarray] = (None, np.zeros(0))   # (outputs cache, its flat vector)
 
         for p in definition.parameters:
             self._register_array(p.element_names, self._params[p.name], Fmi2Causality.parameter,
@@ -241,10 +245,10 @@ class BlockSlave(Fmi2Slave):
 
     def _register_outputs(self, port):
         for i, name in enumerate(port.element_names):
-            self.register_variable(Real(name, causality=Fmi2Causality.output,
-                                        variability=Fmi2Variability.continuous,
-                                        description=port.description,
-                                        getter=lambda p=port.name, i=i: self._output(p, i)))
+            variable = Real(name, causality=Fmi2Causality.output, variability=Fmi2Variability.continuous,
+                            description=port.description, getter=lambda p=port.name, i=i: self._output(p, i))
+            self.register_variable(variable)
+            self._output_offsets[variable.value_reference] = len(self._output_offsets)
             if element_unit(port.unit, i):
                 self._units[name] = element_unit(port.unit, i)
 
@@ -334,7 +338,33 @@ class BlockSlave(Fmi2Slave):
         super().set_string(vrs, values)
 
     def get_real(self, vrs):
-        return self._read(Fmi2Slave.get_real, Real, vrs)
+        """``fmi2GetReal``: outputs only (every step) from one flat vector of the cached outputs;
+        anything else variable by variable through pythonfmu's getters."""
+        key = tuple(vrs)
+        positions = self._output_plans.get(key, False)
+        if positions is False:
+            offsets = self._output_offsets
+            positions = np.array([offsets[vr] for vr in key], dtype=np.intp) \
+                if key and all(vr in offsets for vr in key) else None
+            if len(self._output_plans) < 64:
+                self._output_plans[key] = positions
+        flat = None if positions is None else self._flat_outputs()
+        if flat is None or flat.size != len(self._output_offsets):   # (a block with a wrong output size)
+            return self._read(Fmi2Slave.get_real, Real, vrs)
+        return flat[positions].tolist()
+
+    def _flat_outputs(self) -> np.ndarray:
+        """Every output element in declaration order, as one vector (rebuilt when the outputs change)."""
+        cache = self._outputs_cache
+        if cache is None:
+            first = self.definition.outputs[0]
+            self._output(first.name, 0)          # computes the outputs, or refuses naming why
+            cache = self._outputs_cache
+        source, flat = self._flat
+        if source is not cache:
+            flat = np.concatenate([np.asarray(cache[p.name], dtype=float).ravel() for p in self.definition.outputs])
+            self._flat = cache, flat
+        return flat
 
     def get_integer(self, vrs):
         return self._read(Fmi2Slave.get_integer, Integer, vrs)
@@ -496,7 +526,8 @@ class BlockSlave(Fmi2Slave):
                 continue
             port, index, name = elements[vr]
             if port not in derivatives:
-                derivatives[port] = np.zeros_like(self._inputs[port])
+                store = derivatives[port] = self._derivative_store[port]   # no allocation per step
+                store[:] = 0.0
             derivatives[port][index] = value
             if not -self._bound <= value <= self._bound or self._bad:
                 self._flag(f"der({name})", value)

@@ -30,21 +30,22 @@ estimated by least squares with forgetting and a bound on ``F`` (the unnumbered 
 
 Integration over a communication step
 -------------------------------------
-* Inputs: ``y`` and ``u`` arrive as :class:`~observers.block.Segment` s; inside the step they are
-  the parabolas through the last three communication points when the master interpolates
-  (:class:`~observers.ltv_stepping.QuadraticInputs`), the segments themselves otherwise.
+* Inputs: ``y`` and ``u`` arrive as :class:`~observers.block.Segment` s; inside the step they
+  follow the polynomial of degree ``input_degree`` through the last communication points when
+  the master interpolates (:class:`~observers.ltv_stepping.PolynomialInputs`), the segments
+  themselves otherwise.
 * Filters: one linear ODE ``S' = A0(t) S + G(t)`` for ``S = [xi, W]`` (we store ``-Phi``, which
   obeys the same equation from ``-I``), RK4 sub-steps at most ``max_substep`` long over which
   ``y`` changes by at most ``max_dy`` (``f(y)`` must be resolved: with ``f = sin`` and ``|y|`` in
   the thousands, ``y`` moves by radians per millisecond).
-* Estimator: in its information form the least-squares law integrates ``Psi^T Psi`` and
-  ``Psi^T z`` over time.  Each sub-step contributes the regression at its two Gauss-Legendre
-  nodes (RK4's third-order dense output gives ``S`` there), and the whole step's rows, scaled
-  by ``1/sqrt(rows)``, go to the estimator as ONE held regression ``Y = Phi_rows Theta`` over the
-  step: Gauss quadrature of the integrals (exact for cubics; the forgetting weights are those of the
-  step average, off by ``O(beta h)`` relative, which does not move the fixed point because every
-  row is an exact regression).  The midpoint rule instead costs 3e-4 in ``Theta_hat`` during the
-  first 0.1 s of the bounded example at h = 1e-3 (Gauss: 7e-7).
+* Estimator: in its information form the least-squares law adds
+  ``gamma int exp(-beta (h - s)) Psi^T Psi ds`` to ``P`` over a step (and the same with
+  ``Psi^T z`` to ``q``).  Each sub-step contributes the regression at its two Gauss-Legendre nodes
+  (RK4's third-order dense output gives ``S`` there), each row scaled by the square root of its
+  quadrature weight times its forgetting factor, and the whole step's rows go to the estimator as
+  ONE held regression over the step: Gauss quadrature of the weighted integrals, fourth order
+  (:func:`_quadrature_weights`).  The midpoint rule instead costs 3e-4 in ``Theta_hat`` during
+  the first 0.1 s of the bounded example at h = 1e-3 (Gauss: 7e-7), equal weights ``O(beta h)``.
 
 The paper uses ``C^T(t)``; here ``C`` is constant (as in its example).
 """
@@ -52,6 +53,7 @@ The paper uses ``C^T(t)``; here ``C`` is constant (as in its example).
 from __future__ import annotations
 
 import copy
+from functools import lru_cache
 from typing import Mapping
 
 import numpy as np
@@ -59,8 +61,9 @@ import numpy as np
 from .block import Block, Segment
 from .checks import ParameterError, as_vector, finite_signal, require_positive
 from .estimation import LeastSquaresForgetting
+from .estimation.exponential import phi1
 from .integrators import DEFAULT_SUBSTEP_BUDGET, require_budget, substep_count
-from .ltv_stepping import QuadraticInputs, output_function, rk4_linear, time_function
+from .ltv_stepping import PolynomialInputs, output_function, rk4_linear, time_function
 
 __all__ = ["LTVAdaptiveObserver"]
 
@@ -95,6 +98,10 @@ class LTVAdaptiveObserver(Block):
         Longest RK4 sub-step inside a communication step, s.
     max_dy : float
         Largest change of ``y`` over one sub-step (units of ``y``).
+    input_degree : int
+        Degree of the polynomials through the last communication points that ``y`` and ``u``
+        follow inside a step when the master interpolates
+        (:class:`~observers.ltv_stepping.PolynomialInputs`; 2: parabolas).
     substep_budget : int
         Most RK4 sub-steps one communication step may take (a longer step is refused).
 
@@ -105,11 +112,12 @@ class LTVAdaptiveObserver(Block):
     ``F_max``, the largest eigenvalue of the gain ``F`` (bounded by ``M``; watch it under noise).
     """
 
-    not_state = ("A", "L", "f", "C", "n", "max_substep", "max_dy", "substep_budget", "_diagonals")
+    not_state = ("A", "L", "f", "C", "n", "max_substep", "max_dy", "substep_budget", "_forcing")
     state_optional = {"_memo_key": None, "_memo": None}
 
     def __init__(self, A, C, L, f, gamma=1000.0, beta=1.0, f0=0.1, M=1e12, x_hat0=None, k_hat0=None,
-                 b_hat0=None, m_hat0=None, max_substep=1e-3, max_dy=0.2, substep_budget=DEFAULT_SUBSTEP_BUDGET):
+                 b_hat0=None, m_hat0=None, max_substep=1e-3, max_dy=0.2, input_degree=2,
+                 substep_budget=DEFAULT_SUBSTEP_BUDGET):
         self.C = as_vector("C", C)
         if not np.any(self.C):
             raise ParameterError("C: the output vector is zero; y = C^T x would measure nothing")
@@ -130,35 +138,24 @@ class LTVAdaptiveObserver(Block):
         self.S = np.zeros((n, 1 + 4 * n))
         self.S[:, 1:1 + n] = -np.eye(n)
         rows = np.arange(n)
-        self._diagonals = rows, 1 + n + rows, 1 + 2 * n + rows, 1 + 3 * n + rows
-        self.inputs = QuadraticInputs()
+        forcing = np.zeros((3, n, 1 + 4 * n))       # where y, u and f(y) enter G (identity blocks)
+        for k, first in enumerate((1 + n, 1 + 2 * n, 1 + 3 * n)):
+            forcing[k, rows, first + rows] = 1.0
+        self._forcing = forcing.reshape(3, -1)
+        self.inputs = PolynomialInputs(input_degree)
         self._memo_key, self._memo = None, None
         self.input_sizes = {"u": 1, "y": 1}
         self.output_sizes = {"x_hat": n, "theta_hat": 4 * n, "k_hat": n, "b_hat": n, "m_hat": n,
                              "x0_hat": n, "F_max": 1}
 
     # ------------------------------------------------------------------ equations
-    def _coefficients(self, t: float, y: float, u: float):
-        """``(A0(t), G(t))`` of the filters ``S' = A0 S + G``: (2)-(6) with inputs ``y``, ``u``.
-
-        The last result is remembered: a step starts where the previous one ended (to
-        round-off), so each step evaluates the user's functions twice per sub-step, not three times.
-        """
-        key = self._memo_key
-        if key is not None and all(abs(a - b) <= 1e-12 * max(1.0, abs(a)) for a, b in zip(key, (t, y, u))):
-            return self._memo
-        self._memo_key, self._memo = (t, y, u), self._evaluate(t, y, u)
-        return self._memo
-
     def _evaluate(self, t: float, y: float, u: float):
+        """``(A0(t), G(t))`` of the filters ``S' = A0 S + G``: (2)-(6) with inputs ``y``, ``u``."""
         L = np.asarray(self.L(t), dtype=float)
         A0 = np.asarray(self.A(t), dtype=float) - np.outer(L, self.C)
-        G = np.zeros_like(self.S)
-        G[:, 0] = L * y                      # xi'   = A0 xi + L y
-        rows, eta, zeta, rho = self._diagonals
-        G[rows, eta] = y                     # eta'  = A0 eta + I y
-        G[rows, zeta] = u                    # zeta' = A0 zeta + I u
-        G[rows, rho] = float(self.f(y))      # rho'  = A0 rho + I f(y);  (-Phi)' = A0 (-Phi)
+        # eta' = A0 eta + I y, zeta' = A0 zeta + I u, rho' = A0 rho + I f(y), (-Phi)' = A0 (-Phi)
+        G = (np.array((y, u, float(self.f(y)))) @ self._forcing).reshape(self.S.shape)
+        G[:, 0] = L * y                      # xi' = A0 xi + L y
         return A0, G
 
     def regression(self, S: np.ndarray, y: float) -> tuple[float, np.ndarray]:
@@ -172,41 +169,61 @@ class LTVAdaptiveObserver(Block):
     # ------------------------------------------------------------------ Block interface
     def outputs(self, t: float, inputs: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
         n, theta = self.n, self.estimator.theta_hat.copy()
-        F_max = np.linalg.eigvalsh(self.estimator.F)[-1] if self.estimator.frozen else \
-            1.0 / np.linalg.eigvalsh(self.estimator.P)[0]
+        F_max = self.estimator.F_max
         return {"x_hat": self.state_estimate(), "theta_hat": theta, "k_hat": theta[n:2 * n],
                 "b_hat": theta[2 * n:3 * n], "m_hat": theta[3 * n:], "x0_hat": -theta[:n],
                 "F_max": np.array([F_max])}
 
     def advance(self, t: float, h: float, inputs: Mapping[str, Segment]) -> None:
-        parabolas = self.inputs.parabolas(t, h, inputs)
-        y, u = parabolas["y"], parabolas["u"]
+        polynomials, history = self.inputs.step(t, h, inputs)
+        y, u = polynomials["y"], polynomials["u"]
         count = substep_count(h, self.max_substep, y.max_rate(), self.max_dy, self.substep_budget)
         dt = h / count
-        S, z_rows, psi_rows = self.S, [], []
-        start = self._coefficients(t, y.start, u.start)
+        start = self._memo if self._continues(t, y.start, u.start) else self._evaluate(t, y.start, u.start)
+        S, at_nodes = self.S, []
         for i in range(count):
-            s_mid, s_end = (i + 0.5) * dt, (i + 1) * dt
-            middle = self._coefficients(t + s_mid, y.at(s_mid), u.at(s_mid))
-            end = self._coefficients(t + s_end, y.at(s_end), u.at(s_end))
-            S, at_nodes = rk4_linear(S, dt, start, middle, end, GAUSS_NODES)
-            for node, S_node in zip(GAUSS_NODES, at_nodes):
-                z, psi = self.regression(S_node, y.at((i + node) * dt))
-                z_rows.append(z)
-                psi_rows.append(psi)
+            middle = self._evaluate(t + (i + 0.5) * dt, y.at((i + 0.5) * dt), u.at((i + 0.5) * dt))
+            end = self._evaluate(t + (i + 1) * dt, y.at((i + 1) * dt), u.at((i + 1) * dt))
+            S, inside = rk4_linear(S, dt, start, middle, end, GAUSS_NODES)
+            at_nodes += inside
             start = end
         finite_signal("filters (2)-(6)", S)
         phi = np.abs(S[:, 1:1 + self.n]).max()
         if phi > PHI_LIMIT:
             raise ParameterError(f"L: the filter transition matrix Phi reached {phi:.3g} at t = {t + h:g}: "
                                  f"A0(t) = A(t) - L(t) C^T is not uniformly stable")
-        # the step's regression by Gauss-Legendre quadrature: 2 rows per sub-step, scaled by 1/sqrt(rows)
-        weight = 1.0 / np.sqrt(len(z_rows))
+        # regression (7) at the Gauss nodes of every sub-step, all at once: z = y - C^T xi, Psi = C^T W
+        CS = self.C @ np.array(at_nodes)
+        y_nodes = np.array([y.at((i + node) * dt) for i in range(count) for node in GAUSS_NODES])
+        weights = _quadrature_weights(count, h, self.estimator.beta)
         estimator = copy.copy(self.estimator)          # committed only if the whole step succeeds
-        estimator.theta_hat, estimator.P = estimator.theta_hat.copy(), estimator.P.copy()
-        estimator.update(weight * np.array(z_rows), weight * np.array(psi_rows), h)
+        estimator.update(weights * (y_nodes - CS[:, 0]), weights[:, None] * CS[:, 1:], h)
         self.S, self.estimator = S, estimator
-        self.inputs.commit(t, h, inputs)
+        self._memo_key, self._memo = (t + h, y.at(h), u.at(h)), end
+        self.inputs = history
+
+    def _continues(self, t: float, y: float, u: float) -> bool:
+        """The step starts where the previous one ended (to round-off): its end coefficients apply."""
+        key = self._memo_key
+        return key is not None and all(abs(a - b) <= 1e-12 * max(1.0, abs(a)) for a, b in zip(key, (t, y, u)))
+
+
+@lru_cache(maxsize=64)
+def _quadrature_weights(count: int, h: float, beta: float) -> np.ndarray:
+    r"""Scales of the ``2 count`` Gauss rows of a step so that one held-regression update is the
+    exact information-form step.
+
+    Over a step the law adds ``gamma int_0^h exp(-beta (h - s)) Psi^T Psi(s) ds`` to ``P``; the
+    estimator adds ``gamma h phi1(beta h) Phi^T Phi`` for a held ``Phi``.  Row ``i`` at
+    ``s_i`` (Gauss node of sub-step ``j``, weight ``dt/2``) is scaled by
+    ``sqrt(dt/2 exp(-beta (h - s_i)) / (h phi1(beta h)))``: Gauss quadrature of the weighted
+    integral (the unweighted step average was off by ``O(beta h)`` in the transient).
+    """
+    dt = h / count
+    nodes = (np.arange(count)[:, None] + np.array(GAUSS_NODES)[None, :]).ravel() * dt
+    weights = np.sqrt(0.5 * dt * np.exp(-beta * (h - nodes)) / (h * phi1(beta * h)))
+    weights.flags.writeable = False          # cached: shared by every step of this length
+    return weights
 
 
 def _require_stable_A0(A, L, C, times=np.linspace(0.0, 10.0, 21), tolerance=1e-9) -> None:

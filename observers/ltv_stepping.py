@@ -2,29 +2,28 @@ r"""Stepping helpers shared by the LTV plant and observer of paper 001.
 
 * :func:`time_function`, :func:`output_function` -- check the user's ``A(t)``, ``L(t)``,
   ``f(y)`` once, naming the parameter.
-* :class:`QuadraticInputs` -- the inputs inside a communication step as parabolas through the
-  last three communication points (third order) instead of the chord (second order).
+* :class:`PolynomialInputs` -- the inputs inside a communication step as the polynomial through
+  the last ``degree + 1`` communication points (order ``degree + 1``) instead of the chord.
 * :func:`rk4_linear` -- RK4 for ``S' = A0(t) S + G(t)`` with values inside the step (dense output).
 
-Why parabolas
--------------
+Why polynomials
+---------------
 With linear interpolation of ``y`` across a step (Gauss-Seidel, ``<port>_interpolation = 2``)
 the observer's filters see ``y`` off by ``s (h - s) y''/2``, on average ``h^2 y''/12``, and the
 regression (7) is sensitive to it through its weakly excited directions.  Measured against the
 monolithic reference (largest ``|theta_hat - theta_ref|``): bounded example at h = 1e-3, chord
-9.7e-6, parabola 4.7e-7; the paper's example at h = 1e-4 (``|y''|`` ~ 3e4 by 15 s), chord 4.7e-4,
-parabola 3.0e-5.  The parabola through ``y(t - h_prev)``, ``y(t)``, ``y(t + h)``,
+9.7e-6, parabola 4.7e-7; at h = 1e-2 (with the master's start-up ramp) parabola 2.2e-5, cubic
+1.7e-6, quartic 1.3e-7; the paper's example at h = 1e-4 (``|y''|`` ~ 3e4 by 15 s), chord 4.7e-4,
+parabola 3.0e-5 (its fast wiggle gains nothing from a higher degree).  The polynomial through
+``y(t_(k-d+1)), ..., y(t_k) = y(t)`` and ``y(t + h)`` (the segment's end) is exact for polynomials
+of degree ``d``; its monomial coefficients in ``s = t' - t`` come from the inverse Vandermonde
+matrix of the nodes in units of ``h``, cached (a fixed step has one node pattern).
 
-.. math:: y(t + s) = y(t) + s\,d + c\,s (s - h), \qquad
-          c = \frac{d - d_{prev}}{h + h_{prev}} ,
-
-(``d``, ``d_prev`` the slopes of this and the previous segment) is exact for quadratics.
-
-The curvature ``c`` is used only when the segment continues the previous one (its start equals
-the previous segment's end): that is the case when the master interpolates (``2``), the producer
-stepped before this block.  With hold (``0``) or extrapolation (``1``) a continuing segment has
-the previous slope, so ``c = 0`` and nothing changes -- the reconstruction never makes those
-modes worse.
+The history is used only when the segment continues the previous one (its start equals the
+previous segment's end): that is the case when the master interpolates (``2``), the producer
+stepped before this block.  With hold (``0``) or extrapolation (``1``) the segment does not
+continue and is used as it is -- the reconstruction never makes those modes worse.  Noisy
+samples want a low degree: the polynomial amplifies noise as well as it follows the signal.
 """
 
 from __future__ import annotations
@@ -32,13 +31,13 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
-from .block import Segment
-from .checks import ParameterError, finite_signal
+from .checks import ParameterError, SignalError
 
-__all__ = ["time_function", "output_function", "Parabola", "QuadraticInputs", "rk4_linear"]
+__all__ = ["time_function", "output_function", "InputPolynomial", "PolynomialInputs", "rk4_linear"]
 
 
 def time_function(name: str, function: Callable, shape: tuple[int, ...]) -> Callable:
@@ -70,54 +69,89 @@ def output_function(name: str, function: Callable) -> Callable:
 
 
 @dataclass(frozen=True)
-class Parabola:
-    """A scalar input over one step: ``value(s) = start + s slope + curvature s (s - h)``."""
+class InputPolynomial:
+    """A scalar input over one step: ``value(s) = sum_k coefficients[k] s^k``, ``0 <= s <= h``."""
 
-    start: float
-    slope: float
-    curvature: float
+    coefficients: tuple[float, ...]
     h: float
 
+    @property
+    def degree(self) -> int:
+        return len(self.coefficients) - 1
+
+    @property
+    def start(self) -> float:
+        return self.coefficients[0]
+
     def at(self, s: float) -> float:
-        return self.start + s * self.slope + self.curvature * s * (s - self.h)
+        value = 0.0
+        for c in reversed(self.coefficients):
+            value = value * s + c
+        return value
 
     def max_rate(self) -> float:
-        """Largest ``|d value / ds|`` on ``[0, h]`` (reached at an end)."""
-        return abs(self.slope) + abs(self.curvature) * self.h
+        """A bound on ``|d value / ds|`` over ``[0, h]``: ``sum_k k |c_k| h^(k-1)``."""
+        return sum(k * abs(c) * self.h ** (k - 1) for k, c in enumerate(self.coefficients) if k)
 
 
-class QuadraticInputs:
-    """Turns each block input's consecutive segments into :class:`Parabola` s (module docstring).
+@lru_cache(maxsize=64)
+def _monomial_map(nodes: tuple[float, ...]) -> tuple[tuple[float, ...], ...]:
+    """Rows taking the values at ``nodes`` (in units of the step) to monomial coefficients."""
+    return tuple(map(tuple, np.linalg.inv(np.vander(np.array(nodes), increasing=True)).tolist()))
 
-    Part of the block's state: :meth:`parabolas` does not change it, :meth:`commit` (called
-    once the block's step has succeeded) does.
+
+class PolynomialInputs:
+    """Each block input over a step as the polynomial through the last ``degree + 1`` samples.
+
+    The samples are the communication points of consecutive segments that continue each other
+    (the master interpolates: every segment starts where the previous one ended, and its end is
+    the producer's output at ``t + h``).  A segment that does not continue the previous one (hold,
+    extrapolation, the first step) is used as it is and restarts the history.  Immutable: a
+    block's state holds one, and :meth:`step` returns the inputs over a step together with the
+    history after it, which the block rebinds once its step has succeeded.
     """
 
-    def __init__(self):
-        self._last: dict[str, tuple[float, float, float, float]] = {}   # name -> (t, h, start, slope)
+    def __init__(self, degree: int = 2, samples: dict | None = None):
+        if int(degree) != degree or not 1 <= degree <= 5:
+            raise ParameterError(f"input_degree: expected an integer from 1 to 5, got {degree!r}")
+        self.degree = int(degree)
+        #: name -> (count, times, values): the last ``count`` of ``degree + 1`` entries are the samples.
+        #: A fixed layout (zeros in front), so that an FMU state restores into any history of the block.
+        self.samples: dict[str, tuple[int, tuple[float, ...], tuple[float, ...]]] = samples or {}
 
-    def parabolas(self, t: float, h: float, segments) -> dict[str, Parabola]:
-        """The inputs over ``[t, t + h]``; :class:`~observers.checks.SignalError` on NaN/inf."""
+    def history(self, name: str) -> tuple[tuple[float, ...], tuple[float, ...]]:
+        """The samples of input ``name``: ``(times, values)``, oldest first."""
+        count, times, values = self.samples.get(name, (0, (), ()))
+        return times[len(times) - count:], values[len(values) - count:]
+
+    def step(self, t: float, h: float, segments) -> tuple[dict[str, InputPolynomial], "PolynomialInputs"]:
+        """The inputs over ``[t, t + h]`` and the history after the step (this object is unchanged);
+        :class:`~observers.checks.SignalError` on NaN/inf."""
+        polynomials, samples = {}, dict(self.samples)
         for name, segment in segments.items():
-            finite_signal(f"input {name}", np.concatenate([segment.start, segment.slope]))
-        return {name: self._parabola(name, t, h, segment) for name, segment in segments.items()}
+            start, slope = float(segment.start[0]), float(segment.slope[0])
+            if not (math.isfinite(start) and math.isfinite(slope)):
+                raise SignalError(f"input {name}: not finite ({start}, slope {slope})")
+            times, values = self._continued(name, t, start)
+            end = start + h * slope
+            times, values = times[-self.degree:], values[-self.degree:]
+            if len(times) == 1:
+                polynomials[name] = InputPolynomial((start, slope), h)
+            else:
+                rows = _monomial_map(tuple(round((time - t) / h, 12) for time in times) + (1.0,))
+                points = values + (end,)
+                polynomials[name] = InputPolynomial(tuple(
+                    sum(m * v for m, v in zip(row, points)) / h ** k for k, row in enumerate(rows)), h)
+            padding = (0.0,) * (self.degree - len(times))
+            samples[name] = (len(times) + 1, padding + times + (t + h,), padding + values + (end,))
+        return polynomials, PolynomialInputs(self.degree, samples)
 
-    def _parabola(self, name: str, t: float, h: float, segment: Segment) -> Parabola:
-        start, slope = float(segment.start[0]), float(segment.slope[0])
-        curvature = 0.0
-        last = self._last.get(name)
-        if last is not None:
-            t_prev, h_prev, start_prev, slope_prev = last
-            end_prev = start_prev + h_prev * slope_prev
-            continues = (abs(t_prev + h_prev - t) <= 1e-9 * max(1.0, abs(t))
-                         and abs(end_prev - start) <= 1e-12 * max(1.0, abs(start), abs(end_prev)))
-            if continues:
-                curvature = (slope - slope_prev) / (h + h_prev)
-        return Parabola(start, slope, curvature, h)
-
-    def commit(self, t: float, h: float, segments) -> None:
-        for name, segment in segments.items():
-            self._last[name] = (t, h, float(segment.start[0]), float(segment.slope[0]))
+    def _continued(self, name: str, t: float, start: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
+        """The samples before ``t`` that a segment starting at ``start`` continues, ``t`` included."""
+        times, values = self.history(name)
+        continues = bool(times) and (abs(times[-1] - t) <= 1e-9 * max(1.0, abs(t))
+                                     and abs(values[-1] - start) <= 1e-12 * max(1.0, abs(start), abs(values[-1])))
+        return (times, values) if continues else ((t,), (start,))
 
 
 def rk4_linear(S: np.ndarray, dt: float, start, middle, end, nodes=(0.5,)):

@@ -19,7 +19,6 @@ from __future__ import annotations
 from functools import lru_cache
 
 import numpy as np
-from scipy import signal
 
 from .checks import ParameterError, require_positive
 
@@ -87,6 +86,7 @@ def settling_time(coefficients, band: float = 0.05) -> float:
     slowest = -np.max(np.roots(den).real)
     horizon = 40.0 / slowest
     t = np.linspace(0.0, horizon, 40001)
+    from scipy import signal   # here: scipy.signal costs ~0.5 s to import
     _, response = signal.step(signal.lti([den[-1]], den), T=t)
     outside = np.nonzero(np.abs(response - 1.0) > band)[0]
     return float(t[outside[-1] + 1]) if outside.size else 0.0

@@ -23,7 +23,7 @@ import numpy as np
 from observers.block import Block, Segment
 from observers.checks import ParameterError, SignalError, as_vector, require_positive
 from observers.integrators import DEFAULT_SUBSTEP_BUDGET, require_budget, rk4_step, substep_count
-from observers.ltv_stepping import QuadraticInputs, output_function, time_function
+from observers.ltv_stepping import PolynomialInputs, output_function, time_function
 
 from .signals import SampledNoise
 
@@ -49,6 +49,8 @@ class OutputNonlinearLTVPlant(Block):
         Longest RK4 sub-step, s.
     max_dy : float
         Largest change of ``C^T x`` over one sub-step.
+    input_degree : int
+        Degree of the polynomial ``u`` follows inside a step when the master interpolates.
     substep_budget : int
         Most sub-steps one communication step may take (a longer step is refused).
 
@@ -61,7 +63,8 @@ class OutputNonlinearLTVPlant(Block):
     not_state = ("A", "f", "C", "k", "b", "m", "theta", "noise", "max_substep", "max_dy", "substep_budget")
 
     def __init__(self, A: Callable, C, f: Callable, k, b, m, x0, noise: SampledNoise | None = None,
-                 max_substep: float = 1e-3, max_dy: float = 0.2, substep_budget: int = DEFAULT_SUBSTEP_BUDGET):
+                 max_substep: float = 1e-3, max_dy: float = 0.2, input_degree: int = 2,
+                 substep_budget: int = DEFAULT_SUBSTEP_BUDGET):
         self.C = as_vector("C", C)
         if not np.any(self.C):
             raise ParameterError("C: the output vector is zero; y = C^T x would measure nothing")
@@ -71,19 +74,21 @@ class OutputNonlinearLTVPlant(Block):
         self.k, self.b, self.m, x0 = (as_vector(name, value, n)
                                       for name, value in (("k", k), ("b", b), ("m", m), ("x0", x0)))
         self.theta = np.concatenate([-x0, self.k, self.b, self.m])
+        self._kbm = np.column_stack([self.k, self.b, self.m])
         self.x = x0.copy()
         self.noise = noise
         self.max_substep = require_positive("max_substep", max_substep)
         self.max_dy = require_positive("max_dy", max_dy)
         self.substep_budget = require_budget(substep_budget)
-        self.inputs = QuadraticInputs()
+        self.inputs = PolynomialInputs(input_degree)
         self.input_sizes = {"u": 1}
         self.output_sizes = {"y": 1, "x": n, "theta": 4 * n}
 
-    def rate(self, t: float, x: np.ndarray, u: float) -> np.ndarray:
-        """Right-hand side of (1): ``A(t) x + k y + b u + m f(y)``, ``y = C^T x``."""
-        y = self.C @ x
-        return np.asarray(self.A(t), dtype=float) @ x + self.k * y + self.b * u + self.m * float(self.f(y))
+    def rate(self, t: float, x: np.ndarray, u: float, A: np.ndarray | None = None) -> np.ndarray:
+        """Right-hand side of (1): ``A(t) x + k y + b u + m f(y)``, ``y = C^T x`` (``A``: ``A(t)`` if known)."""
+        y = float(self.C @ x)
+        A = np.asarray(self.A(t), dtype=float) if A is None else A
+        return A @ x + self._kbm @ np.array((y, u, float(self.f(y))))
 
     def outputs(self, t: float, inputs: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
         y = np.array([self.C @ self.x])
@@ -92,11 +97,18 @@ class OutputNonlinearLTVPlant(Block):
         return {"y": y, "x": self.x.copy(), "theta": self.theta.copy()}
 
     def advance(self, t: float, h: float, inputs: Mapping[str, Segment]) -> None:
-        u = self.inputs.parabolas(t, h, inputs)["u"]
-        dy = self.C @ self.rate(t, self.x, u.start)
+        polynomials, history = self.inputs.step(t, h, inputs)
+        u = polynomials["u"]
+        matrices = {}                     # A(s) once per distinct time (RK4 asks for each twice)
+
+        def A(s):
+            if s not in matrices:
+                matrices[s] = np.asarray(self.A(s), dtype=float)
+            return matrices[s]
+
+        dy = self.C @ self.rate(t, self.x, u.start, A(t))
         count = substep_count(h, self.max_substep, dy, self.max_dy, self.substep_budget)
-        x = rk4_step(lambda s, x: self.rate(s, x, u.at(s - t)), t, self.x, h, count)
+        x = rk4_step(lambda s, x: self.rate(s, x, u.at(s - t), A(s)), t, self.x, h, count)
         if not np.all(np.isfinite(x)):
             raise SignalError(f"x: the plant state is not finite at t = {t + h:g} (unstable plant?)")
-        self.x = x
-        self.inputs.commit(t, h, inputs)
+        self.x, self.inputs = x, history

@@ -23,11 +23,10 @@ from __future__ import annotations
 from typing import Mapping
 
 import numpy as np
-from scipy.linalg import expm
 
 from observers.block import Block, Segment
 from observers.checks import ParameterError, as_matrix, as_vector, require_square
-from observers.integrators import DEFAULT_SUBSTEP_BUDGET, require_budget, rk4_step, substep_count
+from observers.integrators import DEFAULT_SUBSTEP_BUDGET, expm, require_budget, rk4_step, substep_count
 
 from .signals import SampledNoise
 
@@ -87,7 +86,7 @@ class DisturbedLTVPlant(Block):
             raise ParameterError(f"omega: frequencies must be >= 0, got {self.omega.tolist()}")
         self.noise = noise
         self.substep_budget = require_budget(substep_budget)
-        self._xi_step: dict[float, np.ndarray] = {}
+        self._xi_step: dict[tuple[float, float], np.ndarray] = {}   # a cache, not state
         self._rate = np.linalg.norm(self.A) + np.linalg.norm(self.Gamma) + float(np.max(self.omega, initial=0))
         self._input_norm = np.linalg.norm(self.B) * np.linalg.norm(self.H)
         self.input_sizes = {}
@@ -97,10 +96,15 @@ class DisturbedLTVPlant(Block):
         """``f(t)``."""
         return sum_of_sines(t, self.amplitude, self.omega, self.phase)
 
-    def _xi_transition(self, h: float) -> np.ndarray:
-        if h not in self._xi_step:
-            self._xi_step[h] = expm(self.Gamma * h)
-        return self._xi_step[h]
+    def _xi_transition(self, h: float, fraction: float = 1.0) -> np.ndarray:
+        """``expm(Gamma fraction h)``, cached per step length and fraction (the RK4 stages of every
+        step ask for the same few fractions: one ``expm`` each instead of one per stage)."""
+        key = (h, round(fraction, 9))
+        if key not in self._xi_step:
+            if len(self._xi_step) >= 512:
+                self._xi_step.clear()
+            self._xi_step[key] = expm(self.Gamma * (key[1] * h))
+        return self._xi_step[key]
 
     def outputs(self, t: float, inputs: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
         y = self.C @ self.x
@@ -116,7 +120,7 @@ class DisturbedLTVPlant(Block):
         substeps = substep_count(h, rate=rate, max_change=_RATE_STEP, budget=self.substep_budget)
 
         def rhs(s, x):
-            xi = xi0 if not Gamma.any() else expm(Gamma * (s - t)) @ xi0
+            xi = xi0 if not Gamma.any() else self._xi_transition(h, (s - t) / h) @ xi0
             return self.A @ x + self.B * ((self.H @ xi) @ x + self.disturbance(s))
 
         x = rk4_step(rhs, t, self.x, h, substeps)

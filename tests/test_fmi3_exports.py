@@ -45,7 +45,8 @@ def test_fmu_container_of_the_ssp_reproduces_the_jacobi_master(build_dir, tmp_pa
                                 "-fmi", str(fmi_version)], capture_output=True, text=True)
     container = tmp_path / "ltv-ls-bounded.fmu"
     assert completed.returncode == 0 and container.is_file(), completed.stdout + completed.stderr
-    ours, _ = run("ltv-ls-bounded", build_dir, stop_time=STOP, step=STEP, order="jacobi", fmi_version=fmi_version)
+    ours, _ = run("ltv-ls-bounded", build_dir, stop_time=STOP, step=STEP, order="jacobi", fmi_version=fmi_version,
+                   ramp=0)   # the container steps on the plain grid
     theirs = simulate_fmu(str(container), stop_time=STOP, step_size=STEP, output_interval=STEP)
     assert np.array_equal(theirs["time"], ours.time)
     # the configuration survived: y(0) = x0[1] = 2 of ltv-ls-bounded, not the FMU's default -3

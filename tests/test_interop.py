@@ -67,7 +67,7 @@ def test_libcosim_reproduces_our_jacobi_master(libcosim, fmt, build_dir, tmp_pat
     execution = osp_execution(libcosim, path) if fmt == "osp" else ssp_execution(libcosim, path, step)
     watch = [("observer", f"theta_hat[{j}]") for j in range(1, 9)] + [("observer", "x_hat[1]"), ("observer", "x_hat[2]")]
     theirs = libcosim_run(libcosim, execution, watch, int(round(stop / step)))
-    ours, _ = run("ltv-ls-bounded", build_dir, stop_time=stop, step=step, order="jacobi")
+    ours, _ = run("ltv-ls-bounded", build_dir, stop_time=stop, step=step, order="jacobi", ramp=0)  # as libcosim
     mine = np.column_stack([ours[f"{i}.{v}"] for i, v in watch])[1:]
     assert np.max(np.abs(theirs - mine)) < 1e-9  # measured 2.5e-13
 
@@ -192,7 +192,7 @@ def test_ecos_runs_the_ssp_package_like_our_jacobi_master(build_dir, tmp_path):
         rows.append([simulation.get_real(f"observer::{name}") for name in names])
     simulation.terminate()
     simulation.free()
-    ours, _ = run("ltv-ls-bounded", build_dir, stop_time=stop, step=step, order="jacobi")
+    ours, _ = run("ltv-ls-bounded", build_dir, stop_time=stop, step=step, order="jacobi", ramp=0)  # as libcosim
     mine = np.column_stack([ours[f"observer.{name}"] for name in names])[1:]
     assert np.max(np.abs(np.array(rows) - mine)) < 1e-9  # measured 1.7e-13
 
@@ -211,9 +211,14 @@ def parameter_error(result, reference) -> float:
 
 def test_masters_on_the_bounded_ltv_case(build_dir, bounded_reference):
     """ltv-ls-bounded (20 s) against its stored monolithic Radau reference."""
+    from reference import paper001
+
     held, _ = run("ltv-ls-bounded", build_dir, step=1e-3, coupling="hold")
     interpolated, _ = run("ltv-ls-bounded", build_dir, step=1e-2, coupling="linear")
     adaptive, _ = run("ltv-ls-bounded", build_dir, order="adaptive", tolerance=1e-3, step=1e-3)
-    errors = [parameter_error(r, bounded_reference) for r in (held, interpolated, adaptive)]
-    assert errors[1] < errors[0] / 100  # 10x fewer steps, 200x smaller error: measured 1.6e-4 vs 3.2e-2
-    assert errors[2] < 1e-3             # measured 5.6e-5 with 1995 accepted steps
+    errors = [parameter_error(r, bounded_reference) for r in (held, interpolated)]
+    assert errors[1] < errors[0] / 100  # 10x fewer steps, 1e5x smaller error: measured 1.3e-7 vs 3.2e-2
+    # the adaptive points miss the 0.05 s grid, and interpolating between them is no measure: the
+    # independent reference at the communication points themselves
+    reference = paper001.simulate(adaptive.time, **paper001.BOUNDED)
+    assert np.abs(adaptive.vector("observer.theta_hat") - reference["theta_hat"]).max() < 1e-3   # 8.1e-5

@@ -31,7 +31,7 @@ def fmus(build_dir):
 
 @pytest.fixture(scope="module")
 def bounded(build_dir, fmus):
-    """The default run of ``ltv-ls-bounded`` (20 s, step 1e-3 s): result and summary."""
+    """The default run of ``ltv-ls-bounded`` (20 s, step 1e-2 s, quartic inputs): result and summary."""
     return run("ltv-ls-bounded", build_dir)
 
 
@@ -75,10 +75,12 @@ def test_bounded_variant_converges_and_agrees_with_the_monolithic_solution(bound
 
 
 def test_holding_y_over_the_step_costs_two_orders_of_accuracy(build_dir, bounded):
-    reference = ref.simulate(np.linspace(0.0, 3.0, 301), **ref.BOUNDED)
+    grid = np.linspace(0.0, 3.0, 301)
+    reference = ref.simulate(grid, **ref.BOUNDED)
     linear, _ = bounded
     held, _ = run("ltv-ls-bounded", build_dir, stop_time=3.0, coupling="hold")
-    deviation = {name: np.abs(result.vector("observer.theta_hat")[:3001:10] - reference["theta_hat"]).max()
+    deviation = {name: np.abs(result.vector("observer.theta_hat")[[result.index_at(t) for t in grid]]
+                              - reference["theta_hat"]).max()
                  for name, result in (("linear", linear), ("hold", held))}
     assert deviation["linear"] < 2e-6                                      # 6.7e-7
     assert deviation["hold"] > 100 * deviation["linear"]                   # 4.4e-3
@@ -162,10 +164,13 @@ def test_measurement_noise_keeps_the_estimates_bounded(build_dir, bounded):
     """std 0.01 on y (|y| <= 2), held over 1 ms: the weakly excited bounded case is sensitive to it,
     but nothing blows up -- F stays near its noise-free size, far below M = 1e12."""
     clean, _ = bounded
-    noisy, summary = run("ltv-ls-bounded", build_dir, overrides=[("plant", "noise_std", 0.01)])
+    # noisy samples want low-degree inputs: a quartic through them amplifies the noise (late error 39)
+    chords = [(instance, "input_degree", 1.0) for instance in ("plant", "observer")]
+    noisy, summary = run("ltv-ls-bounded", build_dir, step=1e-3, overrides=[("plant", "noise_std", 0.01)] + chords)
     assert summary.metrics["noise_std"] == pytest.approx(0.01, rel=0.05)
     assert "max_deviation_from_reference" not in summary.metrics           # noise-free reference not used
-    np.testing.assert_allclose(noisy.vector("plant.x"), clean.vector("plant.x"))   # noise on the output only
+    rows = [noisy.index_at(t) for t in clean.time[::100]]                   # noise on the output only
+    np.testing.assert_allclose(noisy.vector("plant.x")[rows], clean.vector("plant.x")[::100], rtol=1e-6, atol=1e-7)
     e = errors(noisy)
     late = noisy.time >= 10.0
     assert np.all(np.isfinite(e["theta"]))

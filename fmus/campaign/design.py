@@ -205,6 +205,8 @@ class Campaign:
         }
         if settings["order"] == "adaptive":
             settings["tolerance"] = float(self.tolerance)
+        elif scenario.ramp:
+            settings["ramp"] = scenario.ramp     # its start-up ramp, as 'obsfmu run' (fmus.master.cosimulate)
         samples = self._samples(scenario.name, settings)
         return Plan(self, scenario, settings, fmus, fmu_fingerprint(fmus.values()),
                     {name: variables[name] for name in self.specs},

@@ -39,7 +39,7 @@ def _plant(p, options):
     noise = SampledNoise(float(p["noise_std"]), float(p["noise_dt"]), float(p["noise_seed"]))   # checks all three
     return OutputNonlinearLTVPlant(_function(options, "A"), p["C"], _function(options, "f"), p["k"], p["b"],
                                    p["m"], p["x0"], noise, float(p["max_substep"]), float(p["max_dy"]),
-                                   _budget(p))
+                                   _degree(p), _budget(p))
 
 
 @register(OBSERVER_KIND)
@@ -47,7 +47,7 @@ def _observer(p, options):
     return LTVAdaptiveObserver(_function(options, "A"), p["C"], _function(options, "L"), _function(options, "f"),
                                float(p["gamma"]), float(p["beta"]), float(p["f0"]), float(p["M"]),
                                p["x_hat0"], p["k_hat0"], p["b_hat0"], p["m_hat0"],
-                               float(p["max_substep"]), float(p["max_dy"]), _budget(p))
+                               float(p["max_substep"]), float(p["max_dy"]), _degree(p), _budget(p))
 
 
 def _budget(p):
@@ -62,14 +62,24 @@ def _scalar(name, value, description, unit=None) -> Parameter:
     return Parameter.of(name, np.array(value, dtype=float), description, unit)
 
 
-def _stepping(max_substep: float, max_dy: float) -> list[Parameter]:
+def _degree(p) -> int:
+    degree = float(p["input_degree"])
+    if not np.isfinite(degree) or degree != int(degree):
+        raise ParameterError(f"input_degree: expected an integer from 1 to 5, got {degree:g}")
+    return int(degree)
+
+
+def _stepping(max_substep: float, max_dy: float, input_degree: int) -> list[Parameter]:
     return [_scalar("max_substep", max_substep, "longest RK4 sub-step inside a communication step", "s"),
             _scalar("max_dy", max_dy, "largest change of y over one RK4 sub-step (resolves f(y))"),
+            _scalar("input_degree", input_degree, "degree of the polynomial through the last communication "
+                    "points that interpolated inputs follow inside a step (2: parabola)"),
             Parameter.substep_budget()]
 
 
 def ltv_plant_definition(model_name: str, A, C, f, k, b, m, x0, *, noise_std=0.0, noise_dt=1e-3,
-                         noise_seed=0, max_substep=1e-3, max_dy=0.2, description: str = "") -> FmuDefinition:
+                         noise_seed=0, max_substep=1e-3, max_dy=0.2, input_degree=2,
+                         description: str = "") -> FmuDefinition:
     """Plant FMU ``x' = A(t) x + k C^T x + b u + m f(y)``, ``y = C^T x + v``.
 
     ``A`` and ``f`` are module-level functions or ``"module:function"`` references; ``C``, ``k``,
@@ -87,7 +97,7 @@ def ltv_plant_definition(model_name: str, A, C, f, k, b, m, x0, *, noise_std=0.0
         _scalar("noise_std", noise_std, "standard deviation of the measurement noise on y (0: none)"),
         _scalar("noise_dt", noise_dt, "hold interval of the measurement noise", "s"),
         _scalar("noise_seed", noise_seed, "seed of the measurement noise (a non-negative integer)"),
-    ] + _stepping(max_substep, max_dy)
+    ] + _stepping(max_substep, max_dy, input_degree)
     definition = FmuDefinition(
         model_name=model_name, kind=PLANT_KIND, options=options,
         description=description or (f"paper 001 plant x' = A(t) x + k C^T x + b u + m f(y), y = C^T x + noise; "
@@ -105,7 +115,7 @@ def ltv_plant_definition(model_name: str, A, C, f, k, b, m, x0, *, noise_std=0.0
 
 def ltv_observer_definition(model_name: str, A, C, L, f, *, gamma=1000.0, beta=1.0, f0=0.1, M=1e12,
                             x_hat0=None, k_hat0=None, b_hat0=None, m_hat0=None, max_substep=1e-3,
-                            max_dy=0.2, description: str = "") -> FmuDefinition:
+                            max_dy=0.2, input_degree=2, description: str = "") -> FmuDefinition:
     """Adaptive observer FMU of paper 001 (filters (2)-(6), regression (7), LS with forgetting, (10)).
 
     ``A``, ``L``, ``f`` are module-level functions or ``"module:function"`` references; ``C`` is
@@ -124,7 +134,7 @@ def ltv_observer_definition(model_name: str, A, C, L, f, *, gamma=1000.0, beta=1
         _scalar("f0", f0, "F(0) = I / f0"),
         _scalar("M", M, "bound on the largest eigenvalue of F"),
     ] + [Parameter.of(name, zeros if value is None else value, text) for name, value, text in estimates] \
-      + _stepping(max_substep, max_dy)
+      + _stepping(max_substep, max_dy, input_degree)
     definition = FmuDefinition(
         model_name=model_name, kind=OBSERVER_KIND, options=options,
         description=description or (f"paper 001 adaptive observer: filters (2)-(6), regression (7), least squares "

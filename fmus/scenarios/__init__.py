@@ -29,7 +29,7 @@ from ..definition import FmuDefinition
 from ..master import Component, Connection, Recorder, Session, SimulationError, System
 from ..result import Result, RunInfo
 
-__all__ = ["Scenario", "Summary", "SCENARIOS", "get", "ensure_fmus", "run", "run_info", "parse_overrides",
+__all__ = ["Scenario", "Summary", "SCENARIOS", "get", "ensure_fmus", "ensure_all", "run", "run_info", "parse_overrides",
            "system", "changed_parameters"]
 
 
@@ -65,6 +65,10 @@ class Scenario:
     time_unit: str = "s"  #: the unit of time of the models (``h`` for the chemostat)
     #: spacing of the rows that ``obsfmu all`` writes to CSV (None: every communication point)
     output_interval: float | None = None
+    #: why the adaptive master cannot run this scenario (it is then refused at once), or None
+    not_adaptive: str | None = None
+    #: the first step split into h/2^ramp, ..., h/2 (see :func:`fmus.master.cosimulate`)
+    ramp: int = 0
     #: what the paper claims for this example, in our words and numbers (for ``obsfmu report``)
     claim: str = ""
 
@@ -92,6 +96,12 @@ def get(name: str) -> Scenario:
         raise SimulationError(f"unknown scenario {name!r}; available: {', '.join(SCENARIOS)}") from None
 
 
+def _items(scenario: Scenario):
+    for item in scenario.definitions():
+        definition, extra_modules = item if isinstance(item, tuple) else (item, ())
+        yield definition, tuple(extra_modules)
+
+
 def _damage(path: Path, fmi_version: int = 2) -> str | None:
     """Why a cached FMU cannot be used as it is (None: it can)."""
     try:
@@ -108,17 +118,10 @@ def _damage(path: Path, fmi_version: int = 2) -> str | None:
     return None
 
 
-def ensure_fmus(scenario: Scenario, build_dir: Path, force: bool = False, fmi_version: int = 2) -> dict[str, Path]:
-    """Build the scenario's FMUs into ``build_dir`` unless current, intact ones are there.
-
-    A cached FMU built from the same sources but damaged since (unreadable modelDescription,
-    missing binary) is rebuilt with a note on stderr.  FMI 3.0 FMUs (``fmi_version=3``) go to
-    ``build_dir/fmi3`` (:func:`fmus.fmi3.build_folder`).
-    """
+def _ensure(items, build_dir: Path, force: bool, fmi_version: int) -> dict[str, Path]:
     paths = {}
     folder = build_folder(build_dir, fmi_version)
-    for item in scenario.definitions():
-        definition, extra_modules = item if isinstance(item, tuple) else (item, ())
+    for definition, extra_modules in items:
         path = folder / f"{definition.model_name}.fmu"
         if force or not is_current(path, definition, extra_modules, fmi_version):
             build_fmu(definition, folder, extra_modules, fmi_version)
@@ -130,6 +133,31 @@ def ensure_fmus(scenario: Scenario, build_dir: Path, force: bool = False, fmi_ve
             raise SimulationError(f"{path}: {problem} even after rebuilding it")
         paths[definition.model_name] = path
     return paths
+
+
+def ensure_fmus(scenario: Scenario, build_dir: Path, force: bool = False, fmi_version: int = 2) -> dict[str, Path]:
+    """Build the scenario's FMUs into ``build_dir`` unless current, intact ones are there.
+
+    A cached FMU built from the same sources but damaged since (unreadable modelDescription,
+    missing binary) is rebuilt with a note on stderr.  FMI 3.0 FMUs (``fmi_version=3``) go to
+    ``build_dir/fmi3`` (:func:`fmus.fmi3.build_folder`).
+    """
+    return _ensure(_items(scenario), build_dir, force, fmi_version)
+
+
+def ensure_all(scenarios, build_dir: Path, force: bool = False, fmi_version: int = 2) -> dict[str, Path]:
+    """Every distinct FMU of ``scenarios``, each built once (``ltv-ls`` and ``ltv-ls-bounded`` share theirs).
+
+    Two scenarios naming the same model must define it identically (else :class:`SimulationError`).
+    """
+    distinct: dict[str, tuple] = {}
+    for scenario in scenarios:
+        for definition, extra_modules in _items(scenario):
+            known = distinct.setdefault(definition.model_name, (definition, extra_modules, scenario.name))
+            if (known[0].to_json(), known[1]) != (definition.to_json(), extra_modules):
+                raise SimulationError(f"{definition.model_name}: scenarios {known[2]!r} and {scenario.name!r} "
+                                      f"define this FMU differently")
+    return _ensure(((d, extra) for d, extra, _ in distinct.values()), build_dir, force, fmi_version)
 
 
 _OVERRIDE = re.compile(r"^(?P<instance>[A-Za-z_]\w*)\.(?P<variable>[^=]+)=(?P<value>.+)$")
@@ -244,16 +272,20 @@ def run_info(scenario: Scenario, fmus: dict[str, Path], overrides=(), **settings
 def run(name: str, build_dir: Path | str = "build", *, stop_time: float | None = None,
         step: float | None = None, order: str | None = None, coupling: str | None = None,
         overrides=(), progress: bool = False, tolerance: float = 1e-6, recorder: Recorder | None = None,
-        should_stop: Callable[[], bool] | None = None, fmi_version: int = 2) -> tuple[Result, Summary | None]:
+        should_stop: Callable[[], bool] | None = None, fmi_version: int = 2,
+        ramp: int | None = None) -> tuple[Result, Summary | None]:
     """Build (if needed) and co-simulate scenario ``name``; returns the result and its summary.
 
     ``recorder`` receives the communication points (default: in memory) and ``should_stop`` is
     asked after each of them (see :meth:`fmus.master.Session.run`).  The result carries a
     :class:`RunInfo`; an interrupted run has no summary.  FMU warnings of a successful run are
     printed once each on stderr (errors are part of the :class:`SimulationError`).  ``fmi_version``
-    3 runs the scenario's FMI 3.0 FMUs (same results, same column names).
+    3 runs the scenario's FMI 3.0 FMUs (same results, same column names).  ``None`` for a setting
+    means the scenario's default (``ramp``: its start-up ramp, :func:`fmus.master.cosimulate`).
     """
     scenario = get(name)
+    if (order or scenario.order) == "adaptive" and scenario.not_adaptive:
+        raise SimulationError(f"{name}: the adaptive master cannot run this scenario: {scenario.not_adaptive}")
     fmus = ensure_fmus(scenario, Path(build_dir), fmi_version=fmi_version)
     the_system = system(scenario, fmus, overrides)
     settings = dict(stop_time=scenario.stop_time if stop_time is None else stop_time,
@@ -262,7 +294,8 @@ def run(name: str, build_dir: Path | str = "build", *, stop_time: float | None =
     info = run_info(scenario, fmus, overrides, **settings)
     with Session(the_system, echo_log=False) as session:
         result = session.run(**settings, progress=progress, tolerance=tolerance, recorder=recorder,
-                             should_stop=should_stop, time_unit=scenario.time_unit)
+                             should_stop=should_stop, time_unit=scenario.time_unit,
+                             ramp=scenario.ramp if ramp is None else ramp)
         _print_warnings(session)
     result.info = info
     summary = scenario.summarize(result) if scenario.summarize and not result.interrupted else None

@@ -94,7 +94,13 @@ class LeastSquaresForgetting:
         """Restart from ``theta0`` (zeros if omitted) with ``F = I / f0``."""
         self.theta_hat = initial_estimate(theta0, self.p)
         self.P = self.f0 * np.eye(self.p)
+        self.lambda_min = self.f0        # smallest eigenvalue of P, kept with P (one eigvalsh per step)
         self._frozen_F = None
+
+    @property
+    def F_max(self) -> float:
+        """Largest eigenvalue of the gain ``F`` (``1 / lambda_min(P)`` until it is frozen)."""
+        return float(np.linalg.eigvalsh(self._frozen_F)[-1]) if self.frozen else 1.0 / self.lambda_min
 
     @property
     def frozen(self) -> bool:
@@ -115,14 +121,16 @@ class LeastSquaresForgetting:
             frozen_F = 0.5 * (frozen_F + frozen_F.T)
         if frozen_F is None:
             theta, P = self._information_step(Y, Phi, dt)
+            lambda_min = float(np.linalg.eigvalsh(P)[0])
         else:
             theta, P = gradient_flow_step(self.theta_hat, Y, Phi, self.gamma, dt, F=frozen_F), self.P
-        self.theta_hat, self.P, self._frozen_F = theta, P, frozen_F
+            lambda_min = self.lambda_min
+        self.theta_hat, self.P, self.lambda_min, self._frozen_F = theta, P, lambda_min, frozen_F
         return self.theta_hat
 
     def _gain_exceeds_bound(self) -> bool:
         # lambda_max(F) > M  <=>  lambda_min(P) < 1/M
-        return bool(np.linalg.eigvalsh(self.P)[0] * self.M < 1.0)
+        return self.lambda_min * self.M < 1.0
 
     def _information_step(self, Y, Phi, dt):
         weight = self.gamma * dt * phi1(self.beta * dt)

@@ -40,7 +40,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import block_diag
 
 from observers.checks import ParameterError, SignalError, as_matrix, as_vector
 
@@ -142,6 +141,7 @@ class GeneratorModel:
         blocks = [generator_matrix(as_vector(name, gamma, size))
                   for name, gamma, size in (("gamma_beta", gamma_beta, l), ("gamma_theta", gamma_theta, m),
                                             ("gamma_delta", gamma_delta, r)) if size]
+        from scipy.linalg import block_diag   # here: keeps `obsfmu list` light
         return block_diag(*blocks)
 
     def coefficients(self, xi) -> tuple[float, np.ndarray, np.ndarray]:

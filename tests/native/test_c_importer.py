@@ -40,7 +40,8 @@ def c_host(importer, build_dir, tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def master_runs(build_dir):
-    return {name: run(name, build_dir, stop_time=RUNS[name][0], step=RUNS[name][1], order="jacobi")[0]
+    return {name: run(name, build_dir, stop_time=RUNS[name][0], step=RUNS[name][1], order="jacobi",
+                     ramp=0)[0]   # the importer steps on the plain grid
             for name in RUNS}
 
 

@@ -71,8 +71,10 @@ def _regressor(S):
 
 
 def simulate(times, k, b, m, x0, gamma=1000.0, beta=1.0, f0=0.1, M=1e12, form="information",
-             rtol=1e-10, atol=1e-10, u=u_of_t, noise=None):
+             rtol=1e-10, atol=1e-10, u=u_of_t, noise=None, method="Radau"):
     """Solve the monolithic ODE on ``[0, times[-1]]``; values at ``times``.
+
+    ``method`` is the ``solve_ivp`` method (``benchmarks/issue14.py`` times ``LSODA``).
 
     ``noise`` (optional, ``t -> v``) is added to the output the observer measures,
     ``y_m = C^T x + v``; the plant itself uses the true ``y``.
@@ -114,7 +116,7 @@ def simulate(times, k, b, m, x0, gamma=1000.0, beta=1.0, f0=0.1, M=1e12, form="i
     s0[_S] = S0.ravel()
     s0[_MAT] = (np.eye(P_DIM) / f0 if form == "F" else np.eye(P_DIM) * f0).ravel()
     times = np.asarray(times, float)
-    sol = solve_ivp(rhs, (0.0, times[-1]), s0, method="Radau", t_eval=times, rtol=rtol, atol=atol)
+    sol = solve_ivp(rhs, (0.0, times[-1]), s0, method=method, t_eval=times, rtol=rtol, atol=atol)
     if not sol.success:
         raise RuntimeError(sol.message)
     out = {key: [] for key in ("x", "x_hat", "theta_hat", "F_max")}

@@ -186,5 +186,6 @@ SCENARIO = Scenario(
     coupling="linear",
     summarize=summarize,
     plot=plot,
+    not_adaptive="its plant and observer are discrete: they take steps of exactly one sample period Ts",
     claim=CLAIM,
 )

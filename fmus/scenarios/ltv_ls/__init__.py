@@ -13,28 +13,39 @@ with forgetting ``gamma = 1000``, ``beta = 1``, ``f0 = 0.1``, ``M = 1e12``, esti
 
 Default step and coupling, measured through the FMUs against the monolithic Radau reference
 (``tests/reference/paper001.py``, stored here as ``reference_*.csv``): largest
-``|theta_hat - theta_ref|`` on the reference's 0.05 s grid.  "linear" coupling with Gauss-Seidel
-(source, plant, observer) interpolates ``y`` across the step; the blocks turn consecutive chords
-into parabolas (``observers.ltv_stepping.QuadraticInputs``).
+``|theta_hat - theta_ref|`` on the reference's 0.05 s grid (``benchmarks/ltv_coupling.py``, where
+the CPU of the blocks is measured too).  "linear" coupling with Gauss-Seidel (source, plant,
+observer) interpolates ``y`` and ``u`` across the step; the blocks follow the polynomial of degree
+``input_degree`` through the last communication points (``observers.ltv_stepping.PolynomialInputs``),
+RK4 sub-steps of at most ``max_substep``; ``ramp`` splits the master's first step (no history yet).
 
-========  =======  ====================  ==================  ===============  ==============
-case      step     Gauss-Seidel linear   Gauss-Seidel hold   Jacobi linear    Jacobi hold
-========  =======  ====================  ==================  ===============  ==============
-bounded   1e-2     1.6e-4                --                  --               --
-bounded   1e-3     4.7e-7 (default)      3.2e-2              7.2e-4           3.2e-2
-bounded   1e-4     --                    3.2e-3              --               --
-paper     1e-3     2.5e-2                --                  --               --
-paper     5e-4     7.0e-3                --                  --               --
-paper     2e-4     4.0e-4                --                  --               --
-paper     1e-4     3.0e-5 (default)      3.3                 2.1e-3           --
-paper     5e-5     2.3e-6                --                  --               --
-========  =======  ====================  ==================  ===============  ==============
+========  =======  ======  ===========  ====  ==========================
+case      step     degree  max_substep  ramp  max ``|theta_hat - ref|``
+========  =======  ======  ===========  ====  ==========================
+bounded   1e-3     2       1e-3         0     2.5e-7  (the old default)
+bounded   1e-2     2       5e-3         6     2.2e-5
+bounded   1e-2     3       5e-3         6     1.7e-6
+bounded   1e-2     4       5e-3         0     1.9e-4
+bounded   1e-2     4       5e-3         6     1.3e-7  (default; every point 9.5e-8)
+bounded   1e-2     4       1e-2         6     8.7e-7
+bounded   1.25e-2  4       5e-3         6     2.8e-7
+bounded   2.5e-2   4       5e-3         6     1.0e-5
+paper     1e-4     2       1e-3         0     3.0e-5  (default)
+paper     1e-4     3       1e-3         0     3.9e-5
+paper     2e-4     2       1e-3         0     4.0e-4
+paper     2.5e-4   4       1e-3         0     1.3e-3
+========  =======  ======  ===========  ====  ==========================
 
-Why the paper case needs 1e-4 s: ``m sin(y)`` makes ``y`` wiggle at ``|y'|`` rad/s (up to ~3e3 by
-15 s) with amplitude ``|m| / |y'|``; samples 1e-3 s apart cannot resolve it (``|y'| h ~ 1 rad``) --
-with the exact ``y`` inside the step the observer is within 2.9e-6 at 1e-3 s.  The estimator's
-stiffness (``gamma Psi F Psi^T ~ 1e4`` 1/s at t = 0) plays no role: it is integrated exactly.
-Defaults run in ~40 s (paper, 150 000 steps) and ~5 s (bounded).  See ``docs/paper001.md``.
+Held inputs cost two orders of magnitude (bounded, 1e-3 s: 3.2e-2); Jacobi (extrapolated ``y``)
+one to two (7.2e-4).  Why the paper case needs 1e-4 s: ``m sin(y)`` makes ``y`` wiggle at
+``|y'|`` rad/s (up to ~3e3 by 15 s) with amplitude ``|m| / |y'|``; samples 1e-3 s apart cannot
+resolve it (``|y'| h ~ 1 rad``) and a higher degree does not help -- with the exact ``y`` inside
+the step the observer is within 2.9e-6 at 1e-3 s.  The estimator's stiffness
+(``gamma Psi F Psi^T ~ 1e4`` 1/s at t = 0) plays no role: it is integrated exactly.  The bounded
+case's settings are start values of the shared FMUs (``BOUNDED_STEPPING``); with noisy samples
+use ``input_degree = 1`` (a quartic through noisy points amplifies the noise).  Defaults run in
+~1.5 s CPU (bounded, 2 000 steps, whole ``obsfmu run``) and ~60 s (paper, 150 000 steps).
+See ``docs/paper001.md``.
 """
 
 from __future__ import annotations
@@ -207,18 +218,22 @@ CLAIMS = {
 }
 
 
-def _scenario(name, description, unknowns, stop_time, step):
-    starts = {"plant": plant_start(unknowns)}
+def _scenario(name, description, unknowns, stop_time, step, stepping=None, ramp=0):
+    stepping = stepping or {}
+    starts = {"plant": {**plant_start(unknowns), **stepping}, "observer": dict(stepping)}
     return Scenario(name=name, description=description, definitions=definitions,
                     components=[(instance, model, starts.get(instance, {})) for instance, model in COMPONENTS],
                     connections=CONNECTIONS, stop_time=stop_time, step=step, order="gauss-seidel",
-                    coupling="linear", summarize=summarize, plot=plot, output_interval=1e-2,
+                    coupling="linear", summarize=summarize, plot=plot, output_interval=1e-2, ramp=ramp,
                     claim=CLAIMS[name])
 
+
+#: the bounded case's inside-the-step settings: quartic inputs, RK4 sub-steps of 5 ms (see the table)
+BOUNDED_STEPPING = {"input_degree": 4.0, "max_substep": 5e-3}
 
 SCENARIOS = [
     _scenario("ltv-ls", "paper 001: adaptive observer (LS with forgetting) of the paper's unstable LTV plant, 0..15 s",
               PAPER, 15.0, 1e-4),
     _scenario("ltv-ls-bounded", "paper 001: the same FMUs, plant unknowns changed to a bounded case, 0..20 s",
-              BOUNDED, 20.0, 1e-3),
+              BOUNDED, 20.0, 1e-2, BOUNDED_STEPPING, ramp=6),
 ]

@@ -29,7 +29,8 @@ from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
-from scipy.linalg import expm
+
+from observers.integrators import expm
 
 from ...config import LinearDesign, design_from_config, load_config
 from ...master import Connection

@@ -111,5 +111,6 @@ SCENARIO = Scenario(
     coupling="linear",
     summarize=summarize,
     plot=plot,
+    not_adaptive=common.NOT_ADAPTIVE,
     claim=CLAIM,
 )

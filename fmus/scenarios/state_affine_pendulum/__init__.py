@@ -121,5 +121,6 @@ SCENARIO = Scenario(
     output_interval=1e-2,
     summarize=summarize,
     plot=plot,
+    not_adaptive=common.NOT_ADAPTIVE,
     claim=CLAIM,
 )

@@ -1,0 +1,50 @@
+"""The adaptive master (issue 14, target 5): it finishes, or says at once why it cannot.
+
+* Scenarios whose observers step doubling cannot measure (the finite-time DREM ones: uio-ftdrem,
+  state-affine-*) or that are discrete (discrete-gpebo) are refused before anything runs, with
+  the reason; ship, ltv-ls and ltv-ls-bounded run.
+* ``ltv-ls-bounded`` at ``--tol 1e-6`` used not to finish in 900 s: the rounding noise of one
+  output (``F_max = 1/lambda_min(P)``, relative 1e-9) drove the step to its minimum.  It now
+  finishes in seconds and within the tolerance of the independent reference.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+
+import numpy as np
+import pytest
+
+from fmus.master import SimulationError
+from fmus.scenarios import SCENARIOS, get, run
+
+
+@pytest.mark.parametrize("name, reason", [("uio-ftdrem", "step doubling cannot measure this observer's error"),
+                                          ("state-affine-pendulum", "step doubling measures the wrong error"),
+                                          ("discrete-gpebo", "steps of exactly one sample period")])
+def test_scenarios_it_cannot_run_are_refused_at_once_with_the_reason(name, reason, tmp_path):
+    start = time.process_time()
+    with pytest.raises(SimulationError, match=f"{name}: the adaptive master cannot run this scenario: .*{reason}"):
+        run(name, tmp_path, order="adaptive", tolerance=1e-4)
+    assert time.process_time() - start < 1.0                      # nothing built, nothing run
+    assert not list(tmp_path.iterdir())
+
+
+def test_every_scenario_either_runs_adaptively_or_says_why():
+    refused = {name for name, scenario in SCENARIOS.items() if scenario.not_adaptive}
+    assert refused == {"uio-ftdrem", "state-affine-pendulum", "state-affine-chemostat", "discrete-gpebo"}
+    assert all(len(SCENARIOS[name].not_adaptive) > 40 for name in refused)
+
+
+def test_a_tight_tolerance_on_the_bounded_ltv_case_finishes_and_meets_it(build_dir):
+    from reference import paper001
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")                            # no step forced at the minimum
+        result, _ = run("ltv-ls-bounded", build_dir, order="adaptive", tolerance=1e-6)
+    assert result.time[-1] == pytest.approx(get("ltv-ls-bounded").stop_time)
+    assert len(result.time) < 10_000                               # measured 3 100 points
+    reference = paper001.simulate(result.time, **paper001.BOUNDED)
+    assert np.abs(result.vector("observer.theta_hat") - reference["theta_hat"]).max() < 1e-6   # 2.7e-7
+    assert np.all(np.diff(result.time) > 0)

@@ -1,0 +1,83 @@
+"""``obsfmu build``: every distinct FMU built once, validated once, by a validation equal to fmpy's."""
+
+from __future__ import annotations
+
+import zipfile
+from pathlib import Path
+
+import pytest
+from fmpy.model_description import ModelDescription, ScalarVariable
+from fmpy.validation import _validate_variable_names
+from fmpy.validation import validate_fmu as fmpy_validate
+
+import fmus.scenarios as scenarios
+from fmus import cli
+from fmus.master import SimulationError
+from fmus.validation import plain_name, validate_fmu
+
+NAMES = ["x", "x_hat[1]", "A[12,3]", "a.b[1].c", "_", "der(x)", "der(x[1],2)", "x[01]",
+         "1x", "x[]", "x[1,]", "x [1]", "der(x", "a..b", "x[1][2]", "x[-1]", "'quoted name'", "é"]
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_the_fast_name_check_accepts_only_what_fmpys_grammar_accepts(name):
+    description = ModelDescription(fmiVersion="2.0", variableNamingConvention="structured",
+                                   modelVariables=[ScalarVariable(name=name, sourceline=1)])
+    grammar_accepts = _validate_variable_names(description) == []
+    assert not plain_name(name) or grammar_accepts, name        # the regular subset is inside the grammar
+    assert plain_name(name) == (name in NAMES[:8])               # and covers every name the project writes
+
+
+def _with_renamed_variable(source: Path, target: Path, old: str, new: str) -> Path:
+    with zipfile.ZipFile(source) as zin, zipfile.ZipFile(target, "w") as zout:
+        for item in zin.infolist():
+            data = zin.read(item.filename)
+            if item.filename == "modelDescription.xml":
+                data = data.replace(f'name="{old}"'.encode(), f'name="{new}"'.encode())
+            zout.writestr(item, data)
+    return target
+
+
+def test_validation_reports_exactly_what_fmpy_reports(ship_fmus, tmp_path):
+    observer = ship_fmus["ship_observer"]
+    for path in ship_fmus.values():
+        assert validate_fmu(path) == fmpy_validate(str(path)) == [], path
+    renamed = _with_renamed_variable(observer, tmp_path / "renamed.fmu", "x_hat[1]", "x hat[1]")
+    duplicate = _with_renamed_variable(observer, tmp_path / "duplicate.fmu", "x_hat[1]", "x_hat[2]")
+    for broken in (renamed, duplicate):
+        problems = validate_fmu(broken)
+        assert problems and problems == fmpy_validate(str(broken)), broken
+
+
+def test_build_builds_and_validates_each_distinct_fmu_once(monkeypatch, tmp_path, capsys):
+    built, validated = [], []
+
+    def fake_build(definition, out_dir, extra_modules=(), fmi_version=2):
+        built.append(definition.model_name)
+        path = Path(out_dir) / f"{definition.model_name}.fmu"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_bytes(b"")
+        return path
+
+    monkeypatch.setattr(scenarios, "build_fmu", fake_build)
+    monkeypatch.setattr(scenarios, "_damage", lambda path, fmi_version=2: None)   # the fakes are empty files
+    monkeypatch.setattr(cli, "_validate", lambda path: validated.append(Path(path).stem) or [])
+    assert cli.main(["build", "--out", str(tmp_path)]) == 0
+    distinct = {item.model_name if not isinstance(item, tuple) else item[0].model_name
+                for scenario in scenarios.SCENARIOS.values() for item in scenario.definitions()}
+    assert sorted(built) == sorted(distinct) == sorted(validated)
+    assert {"ltv_ls_source", "ltv_ls_plant", "ltv_ls_observer"} <= set(built)    # shared by two scenarios
+    assert capsys.readouterr().out.count("(valid)") == len(distinct)
+
+
+def test_two_scenarios_defining_one_fmu_differently_are_refused(monkeypatch, tmp_path):
+    monkeypatch.setattr(scenarios, "build_fmu", lambda *args, **kwargs: pytest.fail("built"))
+    ship = scenarios.get("ship")
+    definitions = ship.definitions()
+    changed = [d for d in ship.definitions()]
+    changed[0].description = "another description"
+    first = scenarios.Scenario("first", "", lambda: definitions, [], [], 1.0, 0.1)
+    second = scenarios.Scenario("second", "", lambda: changed, [], [], 1.0, 0.1)
+    with pytest.raises(SimulationError, match=f"{changed[0].model_name}: scenarios 'first' and 'second' "
+                                              "define this FMU differently"):
+        scenarios.ensure_all([first, second], tmp_path, force=True)
