@@ -118,6 +118,23 @@ def test_reference_module_reproduces_the_whole_stored_reference_and_finds_the_st
         assert np.abs(fresh[key] - expected)[late].max() < 1e-8, key
 
 
+def test_reference_right_hand_sides_agree():
+    """The reference computes one state on Python floats and stacks (its Jacobian) with numpy: the
+    same equations, in every mode (which stages adapt, which switched, stage 4 on or off)."""
+    from reference import paper003 as reference
+
+    model = reference.Reference(**reference.PAPER, **reference.TUNING)
+    rng = np.random.default_rng(3)
+    for _ in range(32):
+        model.adapt = {stage: bool(rng.integers(2)) for stage in reference.STAGES}
+        model.switched = {stage: bool(rng.integers(2)) for stage in reference.STAGES}
+        model.stage4, model.K = bool(rng.integers(2)), rng.normal(size=2)
+        states, t = rng.normal(size=(reference.LAYOUT.size, 3)), rng.uniform(0.0, 20.0)
+        stacked = model.rhs_stack(t, states)
+        for i in range(3):
+            np.testing.assert_allclose(model.rhs_one(t, states[:, i]), stacked[:, i], rtol=1e-12, atol=1e-12)
+
+
 @pytest.mark.parametrize("overrides, omega", [
     (["plant.amplitude=3", "plant.omega=2", "plant.phase=0.5"], 2.0),
     (["plant.x0[1]=0.5", "plant.x0[2]=0.2"], 1.0),
