@@ -227,7 +227,7 @@ import numpy as np
 from tests.reference import paper001 as ref
 from fmus.scenarios.ltv_ls import load_reference
 r = load_reference("bounded")
-out = ref.simulate(r["t"], **ref.BOUNDED, method="LSODA", rtol={rtol}, atol={rtol})
+out = ref.simulate(r["t"], **ref.BOUNDED, form="information", method="LSODA", rtol={rtol}, atol={rtol})
 print("error", np.abs(out["theta_hat"] - r["theta_hat"]).max())
 """
 

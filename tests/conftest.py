@@ -60,15 +60,3 @@ def kind_fmus(build_dir):
     """``kind -> (scenario step, path)``: one FMU of every block kind of the scenarios, built once."""
     from faults_support import one_per_kind
     return one_per_kind(build_dir)
-
-
-def pytest_collection_modifyitems(config, items):
-    """Tests marked ``full_reference`` re-derive a whole stored reference (minutes): opt-in."""
-    import os
-
-    if os.environ.get("OBSFMU_FULL_REFERENCES"):
-        return
-    skip = pytest.mark.skip(reason="re-derives a whole stored reference (minutes); set OBSFMU_FULL_REFERENCES=1")
-    for item in items:
-        if "full_reference" in item.keywords:
-            item.add_marker(skip)

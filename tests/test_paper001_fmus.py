@@ -1,7 +1,7 @@
 """Paper 001 (issue 5) through FMUs: scenarios ``ltv-ls`` and ``ltv-ls-bounded``.
 
 Source, plant and observer FMUs co-simulated by the project's master, compared with the
-independent monolithic Radau solution of plant + filters + estimator (``tests/reference/paper001.py``,
+independent monolithic solution (scipy) of plant + filters + estimator (``tests/reference/paper001.py``,
 which imports nothing from the project).  Numbers in comments are measured values.
 """
 
@@ -96,7 +96,7 @@ def test_paper_case_converges_within_its_horizon_and_agrees_with_the_reference(b
     parameters, state = convergence(result)
     assert parameters <= 12.5          # 12.16 s (reference 12.17 s); 1.7e-4 at 15 s
     assert state <= 6.3                # 6.03 s (reference 6.04 s); 9e-10 at 15 s
-    reference = load_reference("paper")                                     # Radau, rtol 1e-10, 0.05 s grid
+    reference = load_reference("paper")                                     # stored: Radau, rtol 1e-10, 0.05 s grid
     rows = [result.index_at(t) for t in reference["t"]]
     assert np.abs(result.vector("observer.theta_hat")[rows] - reference["theta_hat"]).max() < 1e-4   # 3.0e-5
     relative = np.abs(result.vector("observer.x_hat")[rows] - reference["x_hat"]) / (1 + np.abs(reference["x"]))
@@ -116,17 +116,15 @@ def check_stored_reference(case, unknowns, horizon, theta_tolerance):
 
 
 def test_stored_references_are_the_monolithic_solution():
-    """The whole bounded reference (20 s, 4 s to compute) and the paper's up to 6 s (of 15 s)."""
-    # Radau at rtol 1e-10 reproduces itself to ~1e-8 here (1.6e-8 measured), the stored 12 digits to 1e-12
+    """The whole stored references, re-derived: bounded (20 s) and the paper's case (15 s), ~10 s CPU.
+
+    The stored CSVs are Radau at rtol = atol = 1e-10 (12 digits); the module now solves with DOP853
+    at 1e-12, which agrees with itself at 1e-13 to 1.4e-9.  Measured against the stored files:
+    bounded 1.2e-7; paper 5.8e-9 up to 12 s and 2.1e-6 at the end, where the unstable plant
+    (|x| ~ 1e3) makes the stored Radau solution drift (it is the less accurate of the two).
+    """
     check_stored_reference("bounded", ref.BOUNDED, 20.0, 1e-6)
-    check_stored_reference("paper", ref.PAPER, 6.0, 1e-6)
-
-
-@pytest.mark.full_reference
-def test_the_whole_stored_paper_reference_is_the_monolithic_solution():
-    """All 15 s of the paper's case (about a minute): the unstable plant grows to |x| ~ 1e3 and
-    theta_hat drifts by 4.1e-6 between two Radau runs on different output grids."""
-    check_stored_reference("paper", ref.PAPER, 15.0, 2e-5)
+    check_stored_reference("paper", ref.PAPER, 15.0, 1e-5)
 
 
 VARIANTS = {   # bounded plants; convergence time of all 8 parameters below 1e-3 in the reference

@@ -1,7 +1,8 @@
 """Paper 001 without FMI: the LTV plant and the adaptive observer blocks, and their error handling.
 
 The reference (``tests/reference/paper001.py``) imports nothing from the project: plant and
-plant + filters + estimator are each ONE ODE solved with Radau at rtol = atol = 1e-10..1e-12.
+plant + filters + estimator are each ONE ODE solved with scipy (the plant: Radau at rtol = atol = 1e-10;
+plant + filters + estimator: DOP853 at rtol = atol = 1e-12).
 """
 
 import math

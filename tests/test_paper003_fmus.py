@@ -85,10 +85,17 @@ def test_cosimulation_agrees_with_the_monolithic_radau_reference(default_run):
     assert late["observer.x_hat"] < 2e-6                       # 5.1e-7
 
 
-@pytest.mark.full_reference
 def test_reference_module_reproduces_the_whole_stored_reference_and_finds_the_stage_times(default_run):
-    """All 20 s of the reference (about 8 minutes): it finds its own stage times, close to those of
-    the co-simulation, and reproduces every column of the stored ``reference.csv``."""
+    """All 20 s of the independent reference (~55 s CPU): it finds its own stage times, close to
+    those of the co-simulation, and reproduces every column of the stored ``reference.csv``.
+
+    Tolerance: ``1e-8 (1 + |stored|)``; the estimates reach 1e2 (``xi0_hat``) and 1e5 (``f_hat``)
+    in the transients, where the solver's rtol = 1e-10 is what two correct solutions share.
+    ``f_hat`` amplifies the error of the stage-3 FT-DREM state by ``1 / (1 - mu) = 50`` and by
+    ``|((j w_hat + l2) / l2)^3|``: there two Radau solutions at rtol 1e-10 and 1e-12 differ by
+    8.6e-6 at |f_hat| = 1.5e5 (t = 0.1 s), so ``f_hat`` gets ``1e-6 (1 + |stored|)`` before
+    stage 4 has been identified and 1e-8 after it (t >= 8 s).
+    """
     from fmus.result import Result
     from reference import paper003 as reference
 
@@ -99,23 +106,33 @@ def test_reference_module_reproduces_the_whole_stored_reference_and_finds_the_st
     cosim = default_run[0].vector("observer.t_identified")[-1]
     # measured: reference 6.530, 7.030, 7.543 s; co-simulation 6.547, 7.046, 7.559 s
     np.testing.assert_allclose(fresh["stage_times"], cosim[1:], atol=0.05)
-    for key, column in (("x", "plant.x"), ("x_tilde0_hat", "observer.x_tilde0_hat"), ("xi0_hat", "observer.xi0_hat"),
-                        ("omega_hat", "observer.omega_hat"), ("f_hat", "observer.f_hat"), ("x_hat", "observer.x_hat")):
-        np.testing.assert_allclose(fresh[key], stored.vector(column), atol=1e-8, err_msg=key)
+    late = stored.time >= 8.0
+    # measured max |fresh - stored| / (1 + |stored|): x 1.9e-11, x_tilde0_hat 2.6e-13, xi0_hat 1.1e-9,
+    # omega_hat 6.8e-10, f_hat 6.5e-8 (t = 2.61 s; 1.8e-9 absolute from 8 s), x_hat 1.5e-10
+    for key, column, tolerance in (("x", "plant.x", 1e-8), ("x_tilde0_hat", "observer.x_tilde0_hat", 1e-8),
+                                   ("xi0_hat", "observer.xi0_hat", 1e-8), ("omega_hat", "observer.omega_hat", 1e-8),
+                                   ("f_hat", "observer.f_hat", 1e-6), ("x_hat", "observer.x_hat", 1e-8)):
+        expected = stored.vector(column)
+        deviation = np.abs(fresh[key] - expected) / (1.0 + np.abs(expected))
+        assert deviation.max() < tolerance, (key, deviation.max())
+        assert np.abs(fresh[key] - expected)[late].max() < 1e-8, key
 
 
-def test_reference_module_reproduces_the_stored_reference_early():
-    from fmus.result import Result
+def test_reference_right_hand_sides_agree():
+    """The reference computes one state on Python floats and stacks (its Jacobian) with numpy: the
+    same equations, in every mode (which stages adapt, which switched, stage 4 on or off)."""
     from reference import paper003 as reference
 
-    stored = Result.from_csv(REFERENCE)
-    times = stored.time[stored.time <= 0.06 + 1e-9]            # past the stage-1 switch (0.055 s)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)
-        fresh = reference.simulate(times)
-    np.testing.assert_allclose(fresh["x"], stored.vector("plant.x")[:times.size], atol=1e-10)
-    np.testing.assert_allclose(fresh["x_tilde0_hat"], stored.vector("observer.x_tilde0_hat")[:times.size],
-                               atol=1e-8)
+    model = reference.Reference(**reference.PAPER, **reference.TUNING)
+    rng = np.random.default_rng(3)
+    for _ in range(32):
+        model.adapt = {stage: bool(rng.integers(2)) for stage in reference.STAGES}
+        model.switched = {stage: bool(rng.integers(2)) for stage in reference.STAGES}
+        model.stage4, model.K = bool(rng.integers(2)), rng.normal(size=2)
+        states, t = rng.normal(size=(reference.LAYOUT.size, 3)), rng.uniform(0.0, 20.0)
+        stacked = model.rhs_stack(t, states)
+        for i in range(3):
+            np.testing.assert_allclose(model.rhs_one(t, states[:, i]), stacked[:, i], rtol=1e-12, atol=1e-12)
 
 
 @pytest.mark.parametrize("overrides, omega", [
