@@ -149,10 +149,12 @@ def run_in_workers(out: Path, build_dir: Path, names: list[str], stop, jobs: int
                 shown += 1
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
-    return _status(names, results, crashed, stop() or bool(flag.value))
+    return _status(names, results, crashed)
 
 
-def _status(names, results: dict[str, Finished | None], crashed: dict[str, BaseException], stopped: bool) -> int:
+def _status(names, results: dict[str, Finished | None], crashed: dict[str, BaseException]) -> int:
+    """0; 130 if a scenario was interrupted or not started (Ctrl-C); 2 if one failed (named on stderr);
+    an unexpected exception of a worker is re-raised (with the worker's traceback)."""
     errors = [(name, results[name].error) for name in names if results.get(name) and results[name].error]
     for name, error in errors:
         print(f"obsfmu: error: {name}: {error}", file=sys.stderr)
@@ -160,6 +162,6 @@ def _status(names, results: dict[str, Finished | None], crashed: dict[str, BaseE
         name, exc = next(iter(crashed.items()))
         print(f"obsfmu: scenario {name} failed:", file=sys.stderr)
         raise exc
-    if stopped or any(r is not None and r.status for r in results.values()):
+    if any(result is None or result.status for result in results.values()):
         return EXIT_INTERRUPTED
     return EXIT_USAGE if errors else 0
