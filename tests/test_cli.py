@@ -286,3 +286,44 @@ def test_a_failing_scenario_is_named_and_the_others_still_finish(build_dir, tmp_
     err = capsys.readouterr().err
     assert "obsfmu: error: ship: observer: " in err and "N: not Hurwitz" in err and "Traceback" not in err
     assert (tmp_path / "out" / "discrete-gpebo.json").exists() and not (tmp_path / "out" / "ship.json").exists()
+
+
+_INTERRUPTIBLE = """
+import sys
+from pathlib import Path
+
+from fmus import cli
+
+if __name__ == "__main__":   # the workers are spawned: they import this file as a module
+    settings = {"ship": {"stop_time": 1e5, "step": 1e-3}, "uio-ftdrem": {"stop_time": 1e5}}   # run until stopped
+    with cli.StopRequest() as stop:
+        sys.exit(cli._run_into(Path(sys.argv[1]), Path(sys.argv[2]), list(settings), stop, 2, settings))
+"""
+
+
+def test_ctrl_c_stops_every_worker_after_its_step_without_a_traceback(build_dir, tmp_path):
+    """SIGINT to the whole process group (a terminal's Ctrl-C) while two workers run: exit 130, each
+    scenario interrupted with its rows kept in NAME.partial.csv, no traceback from any process."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    ensure_fmus(get("ship"), build_dir), ensure_fmus(get("uio-ftdrem"), build_dir)
+    script, out = tmp_path / "interruptible.py", tmp_path / "out"
+    script.write_text(_INTERRUPTIBLE)
+    out.mkdir()
+    process = subprocess.Popen([sys.executable, str(script), str(out), str(build_dir)], stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True, start_new_session=True)
+    deadline = time.monotonic() + 120
+    while not all(list(out.glob(f".{name}.csv.*")) for name in ("ship", "uio-ftdrem")):   # both runs stepping
+        assert process.poll() is None and time.monotonic() < deadline, process.communicate()
+        time.sleep(0.1)
+    os.killpg(process.pid, signal.SIGINT)
+    stdout, stderr = process.communicate(timeout=120)
+    assert process.returncode == 130, stderr
+    assert "Traceback" not in stderr + stdout and "KeyboardInterrupt" not in stderr
+    for name in ("ship", "uio-ftdrem"):
+        assert f"{name}: interrupted at t = " in stdout
+        assert (out / f"{name}.partial.csv").exists() and not (out / f"{name}.csv").exists()
+    assert stdout.index("ship: interrupted") < stdout.index("uio-ftdrem: interrupted")
