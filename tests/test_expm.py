@@ -54,3 +54,15 @@ def test_the_exponential_imports_no_scipy():
             "print(any(name == 'scipy' or name.startswith('scipy.') for name in sys.modules))")
     assert subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip() \
         == "False"
+
+
+@pytest.mark.parametrize("coupling", [1e2, 1e4])
+def test_highly_non_normal_matrices_agree_with_scipy(coupling):
+    """Stable, strongly coupled chains (like the closed loops of high-order designs, whose norm is far
+    above their spectral radius): the scaling follows the powers of the matrix, not its norm."""
+    n = 20
+    M = -np.diag(np.arange(1.0, n + 1)) + coupling * np.eye(n, k=1)
+    for t in (1e-3, 0.1, 1.0):
+        reference = scipy_expm(M * t)
+        assert np.all(np.isfinite(expm(M * t)))
+        assert _relative(expm(M * t), reference) < 1e-10, t   # entries up to 5e54
