@@ -443,13 +443,18 @@ def _configure_export(parser) -> None:
                              "them; FMU Manipulation Toolbox needs them to expose the outputs)")
 
 
+def _cpus() -> int:
+    """The CPUs this process may run on."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+
+
 def _configure_all(parser) -> None:
     parser.add_argument("--out", default=str(DEFAULT_RESULTS), metavar="DIR",
                         help="directory for every scenario's CSV, PNG, SVG, summary and the report "
                              "(default: results)")
     parser.add_argument("--build-dir", default=str(DEFAULT_BUILD), metavar="DIR",
                         help="directory for the FMUs (default: build)")
-    parser.add_argument("--jobs", type=_positive_int, default=os.cpu_count() or 1, metavar="N",
+    parser.add_argument("--jobs", type=_positive_int, default=_cpus(), metavar="N",
                         help="run the scenarios in N worker processes, the longest first (default: the number "
                              "of CPUs, here %(default)s; 1: one after the other in this process); same files, "
                              "summaries in the same order")
