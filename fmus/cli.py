@@ -90,6 +90,17 @@ def _positive(text: str) -> float:
     return value
 
 
+def _positive_int(text: str) -> int:
+    """An integer >= 1 (argparse type)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
+    return value
+
+
 @dataclass(frozen=True)
 class Duration:
     """A time given on the command line: a number in the scenario's unit, or with its own unit."""
@@ -133,12 +144,14 @@ class StopRequest:
     second Ctrl-C kills the process at once (it leaves only hidden temporary files behind).
     """
 
-    def __init__(self):
+    def __init__(self, quiet: bool = False, shared=None):
         self.requested = False
+        self.quiet = quiet      # no message (a worker process of 'obsfmu all --jobs N')
+        self.shared = shared    # a shared byte (multiprocessing RawValue) another process may set
         self._previous = None
 
     def __call__(self) -> bool:
-        return self.requested
+        return self.requested or bool(self.shared is not None and self.shared.value)
 
     def _handle(self, signum, frame) -> None:
         if self.requested:
@@ -146,7 +159,9 @@ class StopRequest:
             os.kill(os.getpid(), signal.SIGINT)
             return
         self.requested = True
-        print("\nobsfmu: stopping after the current step (Ctrl-C again to kill at once)", file=sys.stderr, flush=True)
+        if not self.quiet:
+            print("\nobsfmu: stopping after the current step (Ctrl-C again to kill at once)", file=sys.stderr,
+                  flush=True)
 
     def __enter__(self) -> "StopRequest":
         if threading.current_thread() is threading.main_thread():
@@ -301,28 +316,42 @@ def cmd_export(args) -> int:
     return 0
 
 
-def _run_into(out: Path, build_dir: Path, names, stop: StopRequest) -> int:
-    """Run every scenario in ``names`` with its defaults, writing its files and record into ``out``."""
+def _run_one(out: Path, build_dir: Path, name: str, stop: StopRequest, settings: dict | None = None) -> int:
+    """Run scenario ``name`` (its defaults, or ``settings`` for :func:`fmus.scenarios.run`), write its files
+    and record into ``out``, print its summary; 0, or 130 if it was interrupted."""
     from . import report
     from .scenarios import get
-    for name in names:
-        scenario = get(name)
-        print(f"\n== {name}: {scenario.description}")
-        outcome = _run_scenario(name, build_dir, stop, out / f"{name}.csv", scenario.output_interval)
-        if outcome.result.interrupted:
-            return _interrupted(outcome, name)
-        if outcome.summary:
-            print(outcome.summary)
-        report.save_run(out, scenario, outcome.result, outcome.summary, outcome.wall_time, build_dir)
-        print(f"wrote {out / name}.csv, .png, .svg, .txt, .json")
+    scenario = get(name)
+    print(f"\n== {name}: {scenario.description}")
+    outcome = _run_scenario(name, build_dir, stop, out / f"{name}.csv", scenario.output_interval, **(settings or {}))
+    if outcome.result.interrupted:
+        return _interrupted(outcome, name)
+    if outcome.summary:
+        print(outcome.summary)
+    report.save_run(out, scenario, outcome.result, outcome.summary, outcome.wall_time, build_dir)
+    print(f"wrote {out / name}.csv, .png, .svg, .txt, .json")
     return 0
 
 
-def _run_and_report(out: Path, build_dir: Path, names: list[str]) -> int:
+def _run_into(out: Path, build_dir: Path, names, stop: StopRequest, jobs: int = 1,
+              settings: dict[str, dict] | None = None) -> int:
+    """Run every scenario in ``names`` into ``out``: one after the other, or in ``jobs`` worker processes
+    (:mod:`fmus.parallel`; same files, summaries printed in the order of ``names``)."""
+    if jobs > 1 and len(names) > 1:
+        from .parallel import run_in_workers
+        return run_in_workers(out, build_dir, list(names), stop, jobs, settings or {})
+    for name in names:
+        status = _run_one(out, build_dir, name, stop, (settings or {}).get(name))
+        if status:
+            return status
+    return 0
+
+
+def _run_and_report(out: Path, build_dir: Path, names: list[str], jobs: int = 1) -> int:
     """Run ``names`` into ``out`` (Ctrl-C stops them), then write the report of every scenario there."""
     from . import report
     with StopRequest() as stop:
-        status = _run_into(out, build_dir, names, stop)
+        status = _run_into(out, build_dir, names, stop, jobs)
         if status:
             return status
         print(f"\nwrote {report.write_report(out, build_dir)}")
@@ -338,7 +367,7 @@ def cmd_all(args) -> int:
     if _report_built(_build_all(build_dir)):
         print("obsfmu: error: some FMUs are not valid", file=sys.stderr)
         return 1
-    return _run_and_report(out, build_dir, list(SCENARIOS))
+    return _run_and_report(out, build_dir, list(SCENARIOS), args.jobs)
 
 
 def cmd_report(args) -> int:
@@ -414,12 +443,21 @@ def _configure_export(parser) -> None:
                              "them; FMU Manipulation Toolbox needs them to expose the outputs)")
 
 
+def _cpus() -> int:
+    """The CPUs this process may run on."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+
+
 def _configure_all(parser) -> None:
     parser.add_argument("--out", default=str(DEFAULT_RESULTS), metavar="DIR",
                         help="directory for every scenario's CSV, PNG, SVG, summary and the report "
                              "(default: results)")
     parser.add_argument("--build-dir", default=str(DEFAULT_BUILD), metavar="DIR",
                         help="directory for the FMUs (default: build)")
+    parser.add_argument("--jobs", type=_positive_int, default=_cpus(), metavar="N",
+                        help="run the scenarios in N worker processes, the longest first (default: the number "
+                             "of CPUs, here %(default)s; 1: one after the other in this process); same files, "
+                             "summaries in the same order")
 
 
 def _configure_report(parser) -> None:

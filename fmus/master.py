@@ -123,8 +123,11 @@ def _extracted(fmu: Path) -> Path:
     digest = hashlib.sha256(Path(fmu).read_bytes()).hexdigest()[:32]
     target = EXTRACT_CACHE / digest
     if target.is_dir():
-        os.utime(target)
-        return target
+        try:
+            os.utime(target)
+            return target
+        except OSError:                  # another run pruned it just now: extract it again
+            pass
     EXTRACT_CACHE.mkdir(parents=True, exist_ok=True)
     partial = Path(tempfile.mkdtemp(prefix=f".{digest}.", dir=EXTRACT_CACHE))
     extract(str(fmu), unzipdir=str(partial))
@@ -132,11 +135,23 @@ def _extracted(fmu: Path) -> Path:
         os.replace(partial, target)
     except OSError:                      # another run extracted it meanwhile
         shutil.rmtree(partial, ignore_errors=True)
-    entries = sorted((e for e in EXTRACT_CACHE.iterdir() if not e.name.startswith(".")),
-                     key=lambda e: e.stat().st_mtime, reverse=True)
-    for stale in entries[EXTRACT_CACHE_SIZE:]:
-        shutil.rmtree(stale, ignore_errors=True)
+    _prune(keep=target)
     return target
+
+
+def _prune(keep: Path) -> None:
+    """Remove all but the :data:`EXTRACT_CACHE_SIZE` most recently used entries (never ``keep``).
+    Other processes prune the same cache at the same time: an entry gone meanwhile is skipped."""
+    used = []
+    for entry in EXTRACT_CACHE.iterdir():
+        try:
+            if not entry.name.startswith("."):
+                used.append((entry.stat().st_mtime, entry.name))
+        except OSError:
+            continue
+    for _, name in sorted(used, reverse=True)[EXTRACT_CACHE_SIZE:]:
+        if name != keep.name:
+            shutil.rmtree(EXTRACT_CACHE / name, ignore_errors=True)
 
 
 class _Instance:

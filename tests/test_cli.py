@@ -102,6 +102,8 @@ BAD = {  # id: (argv with {B} = build dir, {T} = tmp dir, {RO} = unwritable dir;
     "export out read-only": (["export", "ship", "--format", "osp", "--out", "{RO}/sub"],
                              "--out {RO}/sub: cannot create the directory"),
     "all build-dir a file": (["all", "--build-dir", "{T}/a-file", "--out", "{T}/r"], "--build-dir {T}/a-file: is a file"),
+    "all jobs 0": (["all", "--jobs", "0", "--out", "{T}/r"], "argument --jobs: must be at least 1, got 0"),
+    "all jobs words": (["all", "--jobs", "two", "--out", "{T}/r"], "argument --jobs: 'two' is not an integer"),
     "export out a file": (["export", "ship", "--format", "ssp", "--out", "{T}/a-file"], "--out {T}/a-file: is a file"),
     "report out a file": (["report", "--out", "{T}/a-file"], "--out {T}/a-file: is a file, expected a directory"),
     "unknown scenario": (["run", "nonesuch"], "unknown scenario 'nonesuch'; available: discrete-gpebo"),
@@ -233,3 +235,95 @@ def test_output_paths_are_checked_before_anything_is_built(tmp_path, monkeypatch
     assert cli.main(["run", "ship", "--build-dir", str(tmp_path / "b"), "--csv", str(tmp_path / "no" / "x.csv")]) == 2
     assert not (tmp_path / "b").exists() or not list((tmp_path / "b").iterdir())
     assert os.path.basename(str(tmp_path / "no")) in capsys.readouterr().err
+
+
+# ----------------------------------------------------------------------------- obsfmu all --jobs N (issue 14)
+#: two short runs; discrete-gpebo first in the printed order, ship (more steps) first in the pool
+SHORT_ALL = {"discrete-gpebo": {"stop_time": 10.0}, "ship": {"stop_time": 0.05}}
+
+
+def _run_all_short(out, build_dir, jobs, settings=SHORT_ALL) -> int:
+    out.mkdir()
+    with cli.StopRequest() as stop:
+        return cli._run_into(out, build_dir, list(settings), stop, jobs, settings)
+
+
+def _record(path):
+    import json
+    record = json.loads(path.read_text())
+    assert record.pop("wall_time") > 0 and record.pop("written")
+    return record
+
+
+def test_all_in_two_worker_processes_writes_and_prints_what_one_process_does(build_dir, tmp_path, capsys):
+    """``--jobs 2`` (spawned workers, longest first) against ``--jobs 1``: the same CSV, summary, figure and
+    record (but its wall time) of every scenario, the summaries printed in the same order."""
+    ensure_fmus(get("ship"), build_dir), ensure_fmus(get("discrete-gpebo"), build_dir)  # built before the pool
+    printed = {}
+    for jobs in (1, 2):
+        assert _run_all_short(tmp_path / f"jobs{jobs}", build_dir, jobs) == 0
+        captured = capsys.readouterr()
+        printed[jobs] = captured.out.replace(f"jobs{jobs}", "DIR")
+        assert "Traceback" not in captured.err
+    assert printed[1] == printed[2]
+    assert printed[2].index("== discrete-gpebo") < printed[2].index("== ship") and "max |co-simulation" in printed[2]
+    one, two = tmp_path / "jobs1", tmp_path / "jobs2"
+    names = sorted(p.name for p in one.iterdir())
+    assert names == sorted(p.name for p in two.iterdir())
+    assert {f"{scenario}.{kind}" for scenario in SHORT_ALL for kind in ("csv", "txt", "png", "json")} <= set(names)
+    for name in names:
+        if name.endswith(".json"):
+            assert _record(one / name) == _record(two / name), name
+        elif not name.endswith(".svg"):      # SVG element ids are random in every run
+            assert (one / name).read_bytes() == (two / name).read_bytes(), name
+
+
+def test_a_failing_scenario_is_named_and_the_others_still_finish(build_dir, tmp_path, capsys):
+    """``N[1] = 0`` makes the ship observer refuse its parameters; discrete-gpebo still writes its files."""
+    settings = {"ship": {"stop_time": 0.05, "overrides": [("observer", "N[1]", 0.0)]},
+                "discrete-gpebo": {"stop_time": 10.0}}
+    assert _run_all_short(tmp_path / "out", build_dir, 2, settings) == 2
+    err = capsys.readouterr().err
+    assert "obsfmu: error: ship: observer: " in err and "N: not Hurwitz" in err and "Traceback" not in err
+    assert (tmp_path / "out" / "discrete-gpebo.json").exists() and not (tmp_path / "out" / "ship.json").exists()
+
+
+_INTERRUPTIBLE = """
+import sys
+from pathlib import Path
+
+from fmus import cli
+
+if __name__ == "__main__":   # the workers are spawned: they import this file as a module
+    settings = {"ship": {"stop_time": 1e5, "step": 1e-3}, "uio-ftdrem": {"stop_time": 1e5}}   # run until stopped
+    with cli.StopRequest() as stop:
+        sys.exit(cli._run_into(Path(sys.argv[1]), Path(sys.argv[2]), list(settings), stop, 2, settings))
+"""
+
+
+def test_ctrl_c_stops_every_worker_after_its_step_without_a_traceback(build_dir, tmp_path):
+    """SIGINT to the whole process group (a terminal's Ctrl-C) while two workers run: exit 130, each
+    scenario interrupted with its rows kept in NAME.partial.csv, no traceback from any process."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    ensure_fmus(get("ship"), build_dir), ensure_fmus(get("uio-ftdrem"), build_dir)
+    script, out = tmp_path / "interruptible.py", tmp_path / "out"
+    script.write_text(_INTERRUPTIBLE)
+    out.mkdir()
+    process = subprocess.Popen([sys.executable, str(script), str(out), str(build_dir)], stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True, start_new_session=True)
+    deadline = time.monotonic() + 120
+    while not all(list(out.glob(f".{name}.csv.*")) for name in ("ship", "uio-ftdrem")):   # both runs stepping
+        assert process.poll() is None and time.monotonic() < deadline, process.communicate()
+        time.sleep(0.1)
+    os.killpg(process.pid, signal.SIGINT)
+    stdout, stderr = process.communicate(timeout=120)
+    assert process.returncode == 130, stderr
+    assert "Traceback" not in stderr + stdout and "KeyboardInterrupt" not in stderr
+    for name in ("ship", "uio-ftdrem"):
+        assert f"{name}: interrupted at t = " in stdout
+        assert (out / f"{name}.partial.csv").exists() and not (out / f"{name}.csv").exists()
+    assert stdout.index("ship: interrupted") < stdout.index("uio-ftdrem: interrupted")

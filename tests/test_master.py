@@ -53,3 +53,24 @@ def test_discarded_step_reports_the_fmu_message(ship_fmus):
     system = ship_system(ship_fmus, start={"observer": {"N[1]": -1.0, "N[2]": 0.0}})
     with pytest.raises(SimulationError, match="N: not Hurwitz"):
         cosimulate(system, 0.01, 0.001, echo_log=False)
+
+
+def test_the_extract_cache_skips_entries_another_process_removed(ship_fmus, tmp_path, monkeypatch):
+    """Concurrent runs (``obsfmu all --jobs N``, other users) prune one cache: an entry that vanishes
+    between listing and ``stat`` (here a dangling link) is skipped, and the cache stays bounded."""
+    import os
+
+    from fmus import master
+
+    cache = tmp_path / "extracted"
+    cache.mkdir()
+    monkeypatch.setattr(master, "EXTRACT_CACHE", cache)
+    monkeypatch.setattr(master, "EXTRACT_CACHE_SIZE", 2)
+    (cache / "removed-meanwhile").symlink_to(tmp_path / "nowhere")
+    for age in range(3):
+        (cache / f"old{age}").mkdir()
+        os.utime(cache / f"old{age}", (1000 + age, 1000 + age))
+    path = master._extracted(ship_fmus["ship_plant"])
+    assert (path / "modelDescription.xml").is_file()
+    kept = sorted(entry.name for entry in cache.iterdir() if entry.is_dir() and not entry.is_symlink())
+    assert kept == sorted([path.name, "old2"])
