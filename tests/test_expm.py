@@ -1,4 +1,4 @@
-"""``observers.integrators.expm`` (numpy scaling and squaring, Higham 2005) against ``scipy.linalg.expm``.
+"""``observers.integrators.expm`` (numpy scaling and squaring, Al-Mohy and Higham 2009) against ``scipy.linalg.expm``.
 
 The project computes its matrix exponentials without scipy so that an LTI FMU, the config checks and
 ``obsfmu run ship`` do not pay the import of scipy (issue 14, target 3); scipy is the independent
