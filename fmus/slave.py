@@ -56,9 +56,9 @@ Faults never crash the host and never corrupt the instance (``docs/faults.md`` h
 
 from __future__ import annotations
 
+import functools
 import math
 from enum import IntEnum
-from functools import lru_cache
 from pathlib import Path
 from typing import ClassVar
 from xml.etree.ElementTree import Element, ParseError, SubElement, iterparse
@@ -114,6 +114,22 @@ _EXTRAPOLATE, _INTERPOLATE = int(InputMode.EXTRAPOLATE), int(InputMode.INTERPOLA
 _NUMERICAL_FAULTS = (ValueError, ArithmeticError, np.linalg.LinAlgError)
 
 
+def _host_independent_numerics(method):
+    """Run ``method`` with numpy's floating-point errors ignored, whatever the host process set.
+
+    The FMU shares numpy with its importer: a host that called ``np.seterr(all="raise")`` (or turned
+    warnings into errors) would otherwise make a harmless underflow inside a block an exception and
+    the step a failure.  Overflow and invalid results need no warning either: the slave checks every
+    new state and output for finiteness and bounds itself (docs/faults.md).  ``np.errstate`` is
+    context-local, so the host's own settings are untouched.  Cost: ~0.8 us per call.
+    """
+    @functools.wraps(method)
+    def quiet(self, *args):
+        with np.errstate(all="ignore"):
+            return method(self, *args)
+    return quiet
+
+
 class FmuState:
     """An FMU state (``fmi2GetFMUstate``): plain data, tagged with the FMU it belongs to."""
 
@@ -128,7 +144,7 @@ _SECTIONS = {"time", "params", "inputs", "modes", "derivatives", "last_inputs", 
              "loader"}
 
 
-@lru_cache(maxsize=None)
+@functools.lru_cache(maxsize=None)
 def _guid(model_description: str) -> str:
     """The token of the FMU unpacked around ``resources``: its GUID (FMI 2.0) or instantiationToken
     (FMI 3.0); "" when not run from an FMU."""
@@ -405,6 +421,7 @@ class BlockSlave(Fmi2Slave):
                                  "built without one; rebuild it with that D")
         return block
 
+    @_host_independent_numerics
     def _try_block(self) -> Block | None:
         """The block of the parameters, built once; None (the reason in ``_block_error``) if they define none."""
         if self._block is None and self._block_error is None:
@@ -476,6 +493,7 @@ class BlockSlave(Fmi2Slave):
             raise Refused(f"start time {start_time} is not finite")
         self._time = float(start_time)
 
+    @_host_independent_numerics
     def exit_initialization_mode(self):
         """Start stepping with the block of the parameters; :class:`Refused` (naming the parameters,
         nothing changed: still in initialization mode) when they define no valid block or its first
@@ -572,6 +590,7 @@ class BlockSlave(Fmi2Slave):
         self.log(f"do_step(t={t:g}, h={h:g}) refused, state unchanged: {reason}", status)
         return False
 
+    @_host_independent_numerics
     def do_step(self, current_time, step_size):
         t, h, block = current_time, step_size, self._block
         if block is None or self._bad or not (0.0 < h < math.inf and math.isfinite(t)):
@@ -700,6 +719,7 @@ class BlockSlave(Fmi2Slave):
         tree = self._own(state).tree
         return tree["loader"], tree["time"], tree["initialized"]
 
+    @_host_independent_numerics
     def set_fmu_state(self, state) -> None:
         """Restore a state of this FMU; anything else is refused (:class:`Refused`) and changes nothing."""
         tree = self._own(state).tree

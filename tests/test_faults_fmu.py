@@ -283,3 +283,23 @@ def test_a_failure_inside_the_block_is_discarded_and_rolled_back(kind_fmus, kind
     assert probe.restore_bytes(good, t_good) == OK           # parameters of the state included
     probe.run(step, 2)
     probe.free()
+
+
+@pytest.mark.parametrize("scenario, stop_time", [("uio-ftdrem", 0.1), ("discrete-gpebo", 40.0)])
+def test_a_host_that_raises_on_floating_point_errors_does_not_break_the_fmus(build_dir, scenario, stop_time):
+    """numpy is shared with the importer: a host with ``np.seterr(all="raise")`` and warnings as errors
+    used to turn a harmless underflow inside these observers into a failed (uio-ftdrem at 0.067 s) or
+    refused (discrete-gpebo at sample 37) step.  The FMUs must run as they do under numpy's defaults,
+    and leave the host's settings as they were."""
+    import warnings
+
+    from fmus.scenarios import run
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        old = np.seterr(all="raise")
+        try:
+            result, _ = run(scenario, build_dir, stop_time=stop_time)
+            assert np.geterr() == {"divide": "raise", "over": "raise", "under": "raise", "invalid": "raise"}
+        finally:
+            np.seterr(**old)
+    assert result.time[-1] == pytest.approx(stop_time)
