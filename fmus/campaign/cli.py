@@ -19,19 +19,9 @@ loguniform(lo, hi) (random specs need --samples; every grid point gets the same 
 Rerunning the same command computes only the samples missing from --out.  See docs/campaigns.md."""
 
 
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
-    return value
-
-
 def configure(sweep: argparse.ArgumentParser) -> None:
     """The options of ``obsfmu sweep``."""
-    from ..cli import _duration
+    from ..cli import _duration, _positive_int
     from ..master import COUPLINGS, ORDERS
 
     sweep.add_argument("scenario", nargs="?", help="scenario name (obsfmu list); optional with --config")
