@@ -114,18 +114,23 @@ _EXTRAPOLATE, _INTERPOLATE = int(InputMode.EXTRAPOLATE), int(InputMode.INTERPOLA
 _NUMERICAL_FAULTS = (ValueError, ArithmeticError, np.linalg.LinAlgError)
 
 
-def _host_independent_numerics(method):
-    """Run ``method`` with numpy's floating-point errors ignored, whatever the host process set.
+def _quiet_numerics():
+    """numpy's floating-point errors ignored inside the block's computations, whatever the host set.
 
     The FMU shares numpy with its importer: a host that called ``np.seterr(all="raise")`` (or turned
     warnings into errors) would otherwise make a harmless underflow inside a block an exception and
     the step a failure.  Overflow and invalid results need no warning either: the slave checks every
     new state and output for finiteness and bounds itself (docs/faults.md).  ``np.errstate`` is
-    context-local, so the host's own settings are untouched.  Cost: ~0.8 us per call.
+    context-local, so the host's own settings are untouched.  Cost: ~0.8 us per use.
     """
+    return np.errstate(all="ignore")
+
+
+def _host_independent_numerics(method):
+    """``method`` (an FMI entry point that runs block code) under :func:`_quiet_numerics`."""
     @functools.wraps(method)
     def quiet(self, *args):
-        with np.errstate(all="ignore"):
+        with _quiet_numerics():
             return method(self, *args)
     return quiet
 
@@ -421,12 +426,12 @@ class BlockSlave(Fmi2Slave):
                                  "built without one; rebuild it with that D")
         return block
 
-    @_host_independent_numerics
     def _try_block(self) -> Block | None:
         """The block of the parameters, built once; None (the reason in ``_block_error``) if they define none."""
         if self._block is None and self._block_error is None:
             try:
-                self._use_block(self._new_block(self._params))
+                with _quiet_numerics():
+                    self._use_block(self._new_block(self._params))
             except Exception as exc:  # a bad parameter set must not crash the host; callers report it
                 self._block_error = f"{type(exc).__name__}: {exc}"
         return self._block
@@ -449,7 +454,8 @@ class BlockSlave(Fmi2Slave):
                 raise Refused(f"output {port} cannot be computed: the parameters do not define a valid block: "
                               f"{self._block_error}")
             try:
-                self._outputs_cache = block.outputs(self._time, self._inputs)
+                with _quiet_numerics():
+                    self._outputs_cache = block.outputs(self._time, self._inputs)
             except _NUMERICAL_FAULTS as exc:       # anything else is a bug: a failure
                 raise Refused(f"output {port} at t={self._time:g} cannot be computed: "
                               f"{type(exc).__name__}: {exc}") from None
