@@ -83,7 +83,8 @@ def campaign_from_args(args):
     """The :class:`~fmus.campaign.design.Campaign` described by the command line (and ``--config``)."""
     from .design import Campaign
 
-    options = {"scenario": args.scenario, "samples": args.samples, "seed": args.seed, "master": args.master, "coupling": args.coupling, "tolerance": args.tol,
+    options = {"scenario": args.scenario, "samples": args.samples, "seed": args.seed, "master": args.master,
+               "coupling": args.coupling, "tolerance": args.tol,
                "time_limit": args.time_limit, "time_metric": args.time_metric, "error_metric": args.error_metric,
                "build_dir": args.build_dir, "vary": _pairs(args.vary, "--vary"), "set": _pairs(args.set, "--set")}
     if args.config:
@@ -96,14 +97,15 @@ def campaign_from_args(args):
 
 
 def _with_times(campaign, args):
-    """``--stop-time``/``--step`` (numbers in the scenario's unit of time, or with their own unit)."""
+    """``--stop-time``/``--step`` in the scenario's unit of time (as for ``obsfmu run``)."""
     from .. import scenarios
+    from ..cli import _times
 
-    given = {key: getattr(args, key) for key in ("stop_time", "step") if getattr(args, key) is not None}
-    if given:
-        unit = scenarios.get(campaign.scenario).time_unit
-        for key, duration in given.items():
-            setattr(campaign, key, duration.in_unit(unit))
+    if args.stop_time is not None or args.step is not None:
+        times = _times(args, scenarios.get(campaign.scenario))
+        for key in ("stop_time", "step"):
+            if times[key] is not None:
+                setattr(campaign, key, times[key])
     return campaign
 
 
