@@ -88,9 +88,9 @@ class InProcessSlaves:
     """The FMUs' slave objects in this process, driven with the calls the C bridge makes.
 
     The bridge turns each FMI call into one Python call with lists (``set_real(vrs, values)``,
-    ``set_real_input_derivatives(vrs, orders, values)``, ``do_step(t, h)``,
-    ``get_real(vrs)``); this does the same, with the master's arithmetic, so the time of a run
-    is block + slave, without ctypes and C.
+    ``get_real(vrs)``), and the master's one call per step (``obsfmuDoStepBatched``) into
+    ``step_batched(t, h)`` on vectors it fills and reads in place (``batch_plan``); this does the
+    same, with the master's arithmetic, so the time of a run is block + slave, without ctypes and C.
     """
 
     def __init__(self, session: Session):
@@ -129,22 +129,22 @@ class InProcessSlaves:
         for inst in instances:
             slaves[inst.name].exit_initialization_mode()
         steps = int(np.ceil(stop_time / step - 1e-9))
+        plans = {inst.name: slaves[inst.name].batch_plan(inst.input_vrs, True, inst.output_vrs) for inst in instances}
         now, before, rows = live.copy(), None, []
         for k in range(steps):
             t = k * step
             slopes = (now - before) / step if before is not None else np.zeros_like(now)
             for inst in instances:
                 slave = slaves[inst.name]
+                values, derivatives, outputs = plans[inst.name]
                 if inst.input_vrs:
-                    values = now[inst.input_sources]
-                    derivatives = slopes[inst.input_sources]
+                    values[:] = now[inst.input_sources]
+                    derivatives[:] = slopes[inst.input_sources]
                     stepped = inst.stepped_before
                     derivatives[stepped] = (live[inst.input_sources][stepped] - values[stepped]) / step
-                    slave.set_real(inst.input_vrs, values.tolist())
-                    slave.set_real_input_derivatives(inst.input_vrs, [1] * len(inst.input_vrs), derivatives.tolist())
-                if not slave.do_step(t, step):
+                if not slave.step_batched(t, step):
                     raise RuntimeError(f"{inst.name}: step refused")
-                live[views[inst.name]] = slave.get_real(inst.output_vrs)
+                live[views[inst.name]] = outputs
             before, now = now, live.copy()
             rows.append(now)
 

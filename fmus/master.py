@@ -258,6 +258,19 @@ class _Instance:
     def do_step(self, t: float, h: float) -> int:
         return self.raw.do_step(self.slave.component, t, h, 1)
 
+    def step(self, t: float, h: float, derivatives: bool) -> int:
+        """:meth:`set_inputs`, :meth:`do_step` and :meth:`refresh_outputs` in one call of the binary
+        (``obsfmuDoStepBatched``, project FMUs only: :attr:`batched`); the FMI status."""
+        vr, outputs, _, values, slopes = self._pointers
+        return self.raw.batched(self.slave.component, t, h, vr, len(self.input_vrs), values,
+                                slopes if derivatives and self.can_interpolate else None,
+                                outputs, len(self.output_vrs), self._output_address)
+
+    @property
+    def batched(self) -> bool:
+        """The binary offers ``obsfmuDoStepBatched`` (an obsfmu FMU, fmus/native/loader.c)."""
+        return self.raw.batched is not None
+
 
 _WARNING = 1  #: worst FMI status that lets a run go on
 
@@ -272,6 +285,11 @@ class _RawCalls:
                                               [pointer, pointer, size, pointer, pointer])
         self.do_step = self._function(dll, "fmi2DoStep", [pointer, c_double, c_double, c_int])
         self.get_real = self._function(dll, "fmi2GetReal", [pointer, pointer, size, pointer])
+        try:                                   # an obsfmu binary: its one-call step (fmus/native/loader.c)
+            self.batched = self._function(dll, "obsfmuDoStepBatched", [pointer, c_double, c_double, pointer, size,
+                                                                       pointer, pointer, pointer, size, pointer])
+        except AttributeError:
+            self.batched = None
 
     @staticmethod
     def _function(dll, name, argtypes):
@@ -428,6 +446,8 @@ class _Stepper:
         self.before: np.ndarray | None = None
         self.h_before = 0.0
         self.feedthrough = [inst for inst in self.order if inst.feedthrough]
+        #: instances whose binary steps in one call (set inputs, step, read outputs: obsfmuDoStepBatched)
+        self.batched = {inst for inst in self.order if getattr(inst, "batched", False)}
 
     def settle(self, passes: int) -> None:
         """Propagate outputs to inputs until direct-feedthrough chains are consistent."""
@@ -456,6 +476,12 @@ class _Stepper:
                     if not self.jacobi and inst.stepped_index.size:  # stepped already: interpolate t -> t + h
                         derivatives[inst.stepped_index] = (live[inst.stepped_sources]
                                                            - values[inst.stepped_index]) / h
+            if inst in self.batched:
+                status = inst.step(t, h, linear)
+                if status > _WARNING:
+                    _check(inst, self.logger, lambda: f"doStep(t={t:.9g}, h={h:.3g}) with its inputs", status)
+                continue
+            if inst.input_vrs:
                 status = inst.set_inputs(linear)
                 if status > _WARNING:
                     _check(inst, self.logger, "setting inputs", status)

@@ -181,6 +181,40 @@ def interpolation_parameter(port: str) -> str:
     return f"{port}_interpolation"
 
 
+def _slices(ports) -> dict[str, slice]:
+    """Each port's elements in the vector of all ports' elements in declaration order."""
+    where, offset = {}, 0
+    for port in ports:
+        where[port.name] = slice(offset, offset + port.size)
+        offset += port.size
+    return where
+
+
+class _BatchPlan:
+    """What :meth:`BlockSlave.step_batched` exchanges with the native binary: the value references of
+    one call, and the vectors whose memory the binary fills (``values``, ``slopes``) before the call and
+    reads (``outputs``) after it; where they go among the FMU's inputs and outputs."""
+
+    __slots__ = ("input_vrs", "output_vrs", "values", "slopes", "outputs", "derivatives", "positions", "given",
+                 "held", "whole_ports", "output_order")
+
+    def __init__(self, input_vrs, derivatives, output_vrs, positions: list[int], input_slices: dict[str, slice],
+                 output_positions: list[int], output_count: int):
+        self.input_vrs, self.output_vrs, self.derivatives = list(input_vrs), list(output_vrs), bool(derivatives)
+        self.values, self.slopes, self.outputs = np.zeros(len(input_vrs)), np.zeros(len(input_vrs)), \
+            np.zeros(len(output_vrs))
+        self.positions = np.array(positions, dtype=np.intp)      # each value's place in the flat inputs
+        given = set(positions)
+        covered = {port: sum(i in given for i in range(where.start, where.stop)) for port, where in input_slices.items()}
+        self.given = {port: input_slices[port] for port, n in covered.items() if n}     # ports set by the call
+        self.held = [port for port, n in covered.items() if not n]                     # ports left as they are
+        self.whole_ports = all(n in (0, where.stop - where.start) for (port, n), where in
+                               zip(covered.items(), input_slices.values()))
+        # positions in the flat outputs; None: all of them in declaration order (nothing to permute)
+        self.output_order = None if list(output_positions) == list(range(output_count)) else \
+            np.array(output_positions, dtype=np.intp)
+
+
 class BlockSlave(Fmi2Slave):
     """Generic adapter from a :class:`~observers.block.Block` to ``pythonfmu``."""
 
@@ -200,7 +234,10 @@ class BlockSlave(Fmi2Slave):
             self.default_experiment = DefaultExperiment(**definition.default_experiment)
 
         self._params = {p.name: np.array(p.value, dtype=float) for p in definition.parameters}
-        self._inputs = {p.name: np.zeros(p.size) for p in definition.inputs}
+        self._input_slices = _slices(definition.inputs)     # port -> its elements in the flat input vector
+        self._output_slices = _slices(definition.outputs)
+        self._input_flat = np.zeros(sum(p.size for p in definition.inputs))
+        self._inputs = {port: self._input_flat[where] for port, where in self._input_slices.items()}   # views
         self._modes = {p.name: np.zeros(1, dtype=int) for p in definition.inputs}
         self._units: dict[str, str] = {}
         self._block: Block | None = None
@@ -215,6 +252,7 @@ class BlockSlave(Fmi2Slave):
         self._last_inputs: dict[str, tuple[np.ndarray, float]] = {}
         self._derivatives: dict[str, np.ndarray] = {}  # first input derivatives for the next step
         self._derivative_store = {p.name: np.zeros(p.size) for p in definition.inputs}  # reused (one per port)
+        self._batch: _BatchPlan | None = None          # the buffers of step_batched (native binary)
         self._input_elements: dict[int, tuple[str, int, str]] = {}  # value reference -> (port, index, name)
         self._element_names = {p.name: p.element_names for p in definition.inputs}
         self._output_offsets: dict[int, int] = {}    # output value reference -> position in the flat outputs
@@ -603,6 +641,15 @@ class BlockSlave(Fmi2Slave):
             return self._refuse_before(t, h)
         inputs = self._inputs
         ends = {port: inputs[port] + h * slope for port, slope in self._derivatives.items()}
+        segments = None if block.stateless else {port: self._segment(port, t, h) for port in inputs}
+        return self._checked_step(t, h, block, segments, ends)
+
+    def _checked_step(self, t: float, h: float, block: Block, segments: dict | None, ends: dict) -> bool:
+        """Advance ``block`` over the input ``segments`` (None: a stateless block) and compute its outputs
+        with the inputs at the step end (``ends``: those that moved); keep the result only if the new
+        state, the inputs at the end and the outputs are all finite and within the bound, else roll back
+        and refuse (docs/faults.md).  True if the step was taken."""
+        inputs = self._inputs
         at_end = {**inputs, **ends} if ends else inputs
         before = None if block.stateless else self._snapshot   # the state now, checked (or None)
         checked = None if before is None else before[1]
@@ -611,7 +658,7 @@ class BlockSlave(Fmi2Slave):
         tree = leaves = outputs = None
         try:
             if before is not None:
-                block.advance(t, h, {port: self._segment(port, t, h) for port in inputs})
+                block.advance(t, h, segments)
                 leaves = Leaves()
                 tree = capture(block, leaves)
             outputs = block.outputs(t + h, at_end)
@@ -635,6 +682,88 @@ class BlockSlave(Fmi2Slave):
         self._outputs_cache = outputs
         return True
 
+    # ------------------------------------------------------------------ one call per step (native binary)
+    def batch_plan(self, input_vrs, derivatives, output_vrs) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Prepare :meth:`step_batched` for these value references: the vectors of input values, input
+        slopes (used if ``derivatives``) and outputs that the native binary fills and reads.
+
+        :class:`Refused` names a value reference that is not a real input (or is given twice) or not
+        an output.
+        """
+        positions, offsets = [], self._output_offsets
+        flat_of = {vr: self._input_slices[port].start + index for vr, (port, index, _) in self._input_elements.items()}
+        for vr in input_vrs:
+            if vr not in flat_of:
+                raise Refused(f"value reference {vr} is not a real input")
+            positions.append(flat_of[vr])
+        if len(set(positions)) != len(positions):
+            raise Refused("a value reference is given twice among the inputs of one step")
+        unknown = [vr for vr in output_vrs if vr not in offsets]
+        if unknown:
+            raise Refused(f"value reference {unknown[0]} is not an output")
+        plan = _BatchPlan(input_vrs, derivatives, output_vrs, positions, self._input_slices,
+                          [offsets[vr] for vr in output_vrs], len(offsets))
+        self._batch = plan
+        return plan.values, plan.slopes, plan.outputs
+
+    @_host_independent_numerics
+    def step_batched(self, current_time, step_size) -> bool:
+        """One communication step in one call, for the native binary's ``obsfmuDoStepBatched``: exactly
+        ``set_real`` of the plan's inputs (:meth:`batch_plan`), ``set_real_input_derivatives`` of their
+        slopes if the plan has them, ``do_step`` and ``get_real`` of the plan's outputs into its
+        ``outputs`` vector -- with the same refusals, faults and results, the checks of a common step
+        (every input of the FMU with a slope, all finite and within the bound) done on whole vectors.
+
+        True: the step was taken and the outputs written; False: the step was refused (fmi2Discard),
+        nothing changed but the inputs; an exception: no step was taken.
+        """
+        plan, block, t, h = self._batch, self._block, current_time, step_size
+        values, slopes = plan.values, plan.slopes
+        common = plan.derivatives and plan.whole_ports and block is not None and not self._bad \
+            and 0.0 < h < math.inf and math.isfinite(t) and \
+            values.dot(values) + slopes.dot(slopes) <= self._bound * self._bound     # False if NaN
+        if not common:
+            return self._step_by_calls(plan, t, h)
+        flat = self._input_flat
+        flat[plan.positions] = values
+        if self._feedthrough:
+            self._outputs_cache = None
+        start, slope = flat.copy(), np.zeros_like(flat)      # new vectors: the block may keep views of them
+        slope[plan.positions] = slopes
+        end = start + h * slope
+        self._derivatives = {port: slope[where] for port, where in plan.given.items()}
+        segments = None if block.stateless else {port: Segment(start[where], slope[where])
+                                                 for port, where in plan.given.items()}
+        if segments is not None and plan.held:
+            segments.update({port: self._segment(port, t, h) for port in plan.held})
+        if not self._checked_step(t, h, block, segments, {port: end[where] for port, where in plan.given.items()}):
+            return False
+        self._write_outputs(plan)
+        return True
+
+    def _step_by_calls(self, plan: _BatchPlan, t: float, h: float) -> bool:
+        """:meth:`step_batched` as the separate calls it stands for (what names a fault, and the rare cases)."""
+        self.set_real(plan.input_vrs, plan.values.tolist())
+        if plan.derivatives and plan.input_vrs:
+            self.set_real_input_derivatives(plan.input_vrs, [1] * len(plan.input_vrs), plan.slopes.tolist())
+        if not self.do_step(t, h):
+            return False
+        self._write_outputs(plan)
+        return True
+
+    def _write_outputs(self, plan: _BatchPlan) -> None:
+        """The plan's outputs after a step into its ``outputs`` vector (a step taken cannot fail here:
+        a wrong-sized block output is logged as the bug it is)."""
+        try:
+            if plan.output_order is None:                     # all outputs in order: port by port
+                cache, vector = self._outputs_cache, plan.outputs
+                for port, where in self._output_slices.items():
+                    vector[where] = cache[port]
+            else:
+                plan.outputs[:] = self._flat_outputs()[plan.output_order]
+        except (ValueError, IndexError, KeyError) as exc:
+            self.log(f"outputs after the step cannot be read: {exc} (a bug: please report)", Fmi2Status.error)
+
     def _refuse_before(self, t: float, h: float) -> bool:
         """A step refused before anything is computed: no block, a bad step size, a bad input."""
         if self._try_block() is None:
@@ -651,20 +780,15 @@ class BlockSlave(Fmi2Slave):
 
     def _all_within(self, leaves: Leaves | None, checked: Leaves | None, ends: dict, outputs: dict) -> bool:
         """One cheap test of everything a step produced -- the state it rebound, the inputs at its
-        end, the outputs: the sum of their squares (inf or NaN if any entry is) within the bound;
-        entry by entry only if not."""
-        total, arrays = 0.0, list(ends.values())
+        end, the outputs, all in one vector: the sum of their squares (inf or NaN if any entry is)
+        within the bound; entry by entry only if not."""
+        arrays = list(ends.values())
         arrays.extend(outputs.values())
         if leaves is not None:
             arrays.extend(unchanged_skipped(leaves, checked))
-            for value in leaves.floats:
-                total += value * value
-        for array in arrays:
-            total += array.dot(array) if array.ndim == 1 and array.dtype.kind == "f" else \
-                np.vdot(array, array).real
-        return total <= self._bound * self._bound or \
-            all(within(np.ravel(array), self._bound) for array in arrays) and \
-            all(-self._bound <= value <= self._bound for value in (leaves.floats if leaves else ()))
+            if leaves.floats:
+                arrays.append(leaves.floats)
+        return not arrays or within(np.concatenate(arrays, axis=None), self._bound)   # one vector, one test
 
     def _fault(self, tree, leaves, checked, ends, outputs, error) -> str:
         """What :meth:`_all_within` (or ``error``, raised by the step) found wrong, in words."""

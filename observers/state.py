@@ -43,6 +43,9 @@ __all__ = ["StateError", "DTYPES", "Leaves", "capture", "restore", "within", "wi
 DTYPES = (np.dtype(np.float64), np.dtype(np.int64), np.dtype(np.bool_), np.dtype(np.complex128))
 _SCALARS = (type(None), bool, int, float, str)
 _CONTAINERS = (list, tuple, deque)
+#: float and complex dtypes: the arrays whose entries are checked against the bound
+_NUMBER_DTYPES = frozenset(dtype for dtype in DTYPES if dtype.kind in "fc")
+_IMMUTABLE, _FLOAT, _STR = frozenset((type(None), int, float, str)), frozenset((float,)), frozenset((str,))
 #: deepest nesting a tree may have
 MAX_DEPTH = 48
 
@@ -93,10 +96,20 @@ def capture(obj, leaves: Leaves | None = None) -> dict:
     for name, value in vars(obj).items():
         if name in skip:
             continue
-        try:
-            tree[name] = _capture(value, leaves)
-        except StateError as exc:
-            raise StateError(f"{type(obj).__name__}.{name}: {exc}") from None
+        kind = type(value)
+        if kind is np.ndarray and value.dtype in _NUMBER_DTYPES:    # the common leaves, without a call
+            if leaves is not None:
+                leaves.arrays.append(value)
+            tree[name] = value
+        elif kind is float:
+            if leaves is not None:
+                leaves.floats.append(value)
+            tree[name] = value
+        else:
+            try:
+                tree[name] = _capture(value, leaves)
+            except StateError as exc:
+                raise StateError(f"{type(obj).__name__}.{name}: {exc}") from None
     return tree
 
 
@@ -114,12 +127,17 @@ def _capture(value, leaves):
         return value
     if kind in _SCALARS:
         return value
+    if kind is tuple:
+        kinds = set(map(type, value))
+        if kinds <= _IMMUTABLE:            # plain numbers (a history of samples): shared, as arrays are
+            if leaves is not None and float in kinds:
+                leaves.floats.extend(value if kinds == _FLOAT else [item for item in value if type(item) is float])
+            return value
+        return tuple(_capture(item, leaves) for item in value)
     if kind is list or kind is deque:
         return [_capture(item, leaves) for item in value]
-    if kind is tuple:
-        return tuple(_capture(item, leaves) for item in value)
     if kind is dict:
-        if not all(type(key) is str for key in value):
+        if not set(map(type, value)) <= _STR:
             raise StateError("dictionary keys must be strings")
         return {key: _capture(item, leaves) for key, item in value.items()}
     if isinstance(value, np.generic) and value.dtype in DTYPES:

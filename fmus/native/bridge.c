@@ -30,6 +30,8 @@
  *   get_fmu_state(loader={"fmi": 2|3, "state": name}) -> obj, set_fmu_state(obj),
  *   loader_fields(obj) -> (loader dict or None, time, initialized),
  *   serialize_fmu_state(obj) -> bytes, deserialize_fmu_state(bytes) -> obj,
+ *   batch_plan(input vrs, slopes: bool, output vrs) -> (values, slopes, outputs) float64 vectors,
+ *   step_batched(t, h) -> bool (obsfmuDoStepBatched: the vectors filled and read in place),
  *   log_queue: list of messages with .status, .category, .msg (drained after each call);
  *   class attribute Refused: the exception type of refused calls.
  */
@@ -37,6 +39,17 @@
 #include <Python.h>
 
 #include "obsfmu_native.h"
+
+/* The buffers of do_step_batched: the slave's vectors of input values, slopes and outputs
+ * (slave.batch_plan), written and read in place through the buffer protocol, for the value
+ * references they were made for; and the bound method slave.step_batched. */
+typedef struct {
+    PyObject *step;                 /* NULL: not bound */
+    Py_buffer buffers[3];           /* values, slopes, outputs */
+    fmi2ValueReference *inputs, *outputs;
+    size_t ninputs, noutputs;
+    int slopes;
+} Batch;
 
 typedef struct {
     PyObject *slave_class;
@@ -49,6 +62,7 @@ typedef struct {
     int visible;
     int logging_on;
     int refused;        /* the last call returned fmi2Error because the slave refused it */
+    Batch batch;        /* obsfmuDoStepBatched's buffers (bound on first use) */
 } Component;
 
 /* ------------------------------------------------------------------ logging */
@@ -199,9 +213,21 @@ static PyObject *slave_class(Component *c, const char *record)
     return cls;
 }
 
+static void drop_batch(Batch *b)
+{
+    if (b->step != NULL) {
+        for (int i = 0; i < 3; i++) PyBuffer_Release(&b->buffers[i]);
+        Py_CLEAR(b->step);
+    }
+    free(b->inputs);
+    free(b->outputs);
+    memset(b, 0, sizeof *b);
+}
+
 static void free_component(Component *c)
 {
     if (c == NULL) return;
+    drop_batch(&c->batch);
     Py_XDECREF(c->instance);
     Py_XDECREF(c->refusal);
     Py_XDECREF(c->slave_class);
@@ -327,6 +353,7 @@ static fmi2Status reset(fmi2Component component)
         if (fresh == NULL) {
             status_ = python_error(c, "fmi2Reset");
         } else {
+            drop_batch(&c->batch);
             Py_DECREF(c->instance);
             c->instance = fresh;
             status_ = drain_log(c);
@@ -596,6 +623,87 @@ static fmi2Status do_step(fmi2Component component, fmi2Real currentCommunication
     })
 }
 
+/* Bind the slave's vectors for these value references (slave.batch_plan), unless bound already. */
+static fmi2Status bind_batch(Component *c, const fmi2ValueReference vr[], size_t nvr, int slopes,
+                             const fmi2ValueReference out_vr[], size_t nout)
+{
+    Batch *b = &c->batch;
+    if (b->step != NULL && b->ninputs == nvr && b->noutputs == nout && b->slopes == slopes &&
+        (nvr == 0 || memcmp(b->inputs, vr, nvr * sizeof *vr) == 0) &&
+        (nout == 0 || memcmp(b->outputs, out_vr, nout * sizeof *out_vr) == 0))
+        return fmi2OK;
+    drop_batch(b);
+    PyObject *vectors = NULL;
+    fmi2Status status = call(c, "batch_plan", Py_BuildValue("(NON)", reference_list(vr, nvr),
+                                                            slopes ? Py_True : Py_False,
+                                                            reference_list(out_vr, nout)), &vectors);
+    if (vectors == NULL) return status;
+    size_t sizes[3] = {nvr, nvr, nout};
+    int bound = 0;
+    if (PyTuple_Check(vectors) && PyTuple_Size(vectors) == 3) {
+        for (; bound < 3; bound++) {
+            Py_buffer *view = &b->buffers[bound];
+            if (PyObject_GetBuffer(PyTuple_GET_ITEM(vectors, bound), view, PyBUF_WRITABLE | PyBUF_C_CONTIGUOUS) != 0)
+                break;
+            if (view->len != (Py_ssize_t)(sizes[bound] * sizeof(double)) || view->itemsize != sizeof(double)) {
+                PyBuffer_Release(view);
+                PyErr_SetString(PyExc_TypeError, "batch_plan returned a vector of the wrong size");
+                break;
+            }
+        }
+    }
+    Py_DECREF(vectors);
+    b->inputs = malloc(nvr * sizeof *vr + 1);
+    b->outputs = malloc(nout * sizeof *out_vr + 1);
+    if (bound == 3 && b->inputs && b->outputs) b->step = PyObject_GetAttrString(c->instance, "step_batched");
+    if (b->step == NULL) {
+        while (bound > 0) PyBuffer_Release(&b->buffers[--bound]);
+        free(b->inputs);
+        free(b->outputs);
+        memset(b, 0, sizeof *b);
+        if (!PyErr_Occurred()) PyErr_SetString(PyExc_TypeError, "batch_plan did not return three float vectors");
+        return python_error(c, "obsfmuDoStepBatched");
+    }
+    if (nvr) memcpy(b->inputs, vr, nvr * sizeof *vr);
+    if (nout) memcpy(b->outputs, out_vr, nout * sizeof *out_vr);
+    b->slopes = slopes;
+    b->ninputs = nvr;
+    b->noutputs = nout;
+    return status;
+}
+
+/* obsfmuDoStepBatched (obsfmu_native.h): set the inputs (and slopes), step, read the outputs in one
+ * call of slave.step_batched. *stepped = 1 when the step was taken (the outputs are then written). */
+static fmi2Status do_step_batched(fmi2Component component, fmi2Real t, fmi2Real h, const fmi2ValueReference vr[],
+                                  size_t nvr, const fmi2Real value[], const fmi2Real slope[],
+                                  const fmi2ValueReference out_vr[], size_t nout, fmi2Real out[], int *stepped)
+{
+    *stepped = 0;
+    COMPONENT
+    WITH_GIL({
+        status_ = bind_batch(c, vr, nvr, slope != NULL, out_vr, nout);
+        if (status_ < fmi2Error) {
+            Batch *b = &c->batch;
+            if (nvr) memcpy(b->buffers[0].buf, value, nvr * sizeof(double));
+            if (nvr && slope) memcpy(b->buffers[1].buf, slope, nvr * sizeof(double));
+            PyObject *result = PyObject_CallFunction(b->step, "dd", t, h);
+            if (result == NULL) {
+                status_ = python_error(c, "obsfmuDoStepBatched");
+            } else {
+                fmi2Status logged = drain_log(c);
+                if (logged > status_) status_ = logged;
+                if (PyObject_IsTrue(result) == 1) {
+                    *stepped = 1;
+                    if (nout) memcpy(out, b->buffers[2].buf, nout * sizeof(double));
+                } else if (status_ < fmi2Discard) {
+                    status_ = fmi2Discard;
+                }
+                Py_DECREF(result);
+            }
+        }
+    })
+}
+
 static int refused(fmi2Component component)
 {
     Component *c = (Component *)component;
@@ -610,6 +718,7 @@ __attribute__((visibility("default"))) const ObsfmuBridge *obsfmu_bridge(void)
         get_real, get_integer, get_boolean, get_string, set_real, set_integer, set_boolean, set_string,
         get_fmu_state, machine_of, set_fmu_state, free_fmu_state, serialized_fmu_state_size, serialize_fmu_state,
         deserialize_fmu_state, set_real_input_derivatives, clear_input_derivatives, do_step, refused,
+        do_step_batched,
     };
     return &table;
 }

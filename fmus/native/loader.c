@@ -286,6 +286,33 @@ fmi2Status fmi2DoStep(fmi2Component component, fmi2Real currentCommunicationPoin
     return after(c, status);
 }
 
+/* obsfmu's extension for its own master (not part of FMI 2.0; docs/portability.md): one communication
+ * step in one call, exactly
+ *     fmi2SetReal(vr, value); [fmi2SetRealInputDerivatives(vr, 1, slope) unless slope == NULL;]
+ *     fmi2DoStep(t, h, fmi2True); fmi2GetReal(outputVr, output)
+ * with the same checks, statuses and state machine, in one call of the bridge (one Python call instead
+ * of four).  Allowed where fmi2DoStep is; `output` is written only if the step was taken. */
+__attribute__((visibility("default"))) fmi2Status obsfmuDoStepBatched(
+    fmi2Component component, fmi2Real t, fmi2Real h, const fmi2ValueReference vr[], size_t nvr,
+    const fmi2Real value[], const fmi2Real slope[], const fmi2ValueReference outputVr[], size_t nOutputs,
+    fmi2Real output[])
+{
+    ENTER(obsfmuDoStepBatched, STEP_COMPLETE)
+    ARRAYS(obsfmuDoStepBatched, vr, nvr, value)
+    ARRAYS(obsfmuDoStepBatched, outputVr, nOutputs, output)
+    if (!finite(h) || h <= 0)
+        return refuse(c, "obsfmuDoStepBatched: communicationStepSize %g is not a positive finite number", h);
+    if (!finite(t) || magnitude(t - c->time) > 1e-9 * (magnitude(c->time) > 1 ? magnitude(c->time) : 1))
+        return refuse(c, "obsfmuDoStepBatched: currentCommunicationPoint %.17g is not the FMU's current time %.17g",
+                      t, c->time);
+    int stepped = 0;
+    fmi2Status status = c->bridge->doStepBatched(c->inner, t, h, vr, nvr, value, slope, outputVr, nOutputs, output,
+                                                 &stepped);
+    if (stepped) c->time = t + h;
+    else if (status == fmi2Discard) c->state = STEP_FAILED;
+    return after(c, status);
+}
+
 fmi2Status fmi2CancelStep(fmi2Component component)
 {
     ENTER(fmi2CancelStep, NO_STATE) /* steps are synchronous: never in stepInProgress */

@@ -23,7 +23,7 @@
 #define OBSFMU_RECORD "obsfmu_native.txt"
 #define OBSFMU_STARTS "obsfmu_start.txt" /* start values of an exported copy (loader_common.h) */
 #define OBSFMU_BRIDGE_SYMBOL "obsfmu_bridge"
-#define OBSFMU_BRIDGE_ABI 2
+#define OBSFMU_BRIDGE_ABI 3
 
 /* What the loader keeps in an FMU state (one serialized format: the slave's, fmus/state_format.py).
  * The loader hands `fmi` and `state` to the slave's getFMUstate; machineOf() gives them back from any
@@ -82,6 +82,12 @@ typedef struct {
     fmi2DoStepTYPE *doStep;
     /* 1 if the bridge's last call on c returned fmi2Error because the slave refused it */
     int (*refused)(fmi2Component c);
+    /* one communication step in one call (the loaders' obsfmuDoStepBatched): set the inputs `vr`
+     * to `value` (and their first derivatives to `slope` unless NULL), step, read the outputs `out_vr`
+     * into `out`; *stepped = 1 when the step was taken (then `out` is written) */
+    fmi2Status (*doStepBatched)(fmi2Component c, fmi2Real t, fmi2Real h, const fmi2ValueReference vr[], size_t nvr,
+                                const fmi2Real value[], const fmi2Real slope[], const fmi2ValueReference out_vr[],
+                                size_t nout, fmi2Real out[], int *stepped);
 } ObsfmuBridge;
 
 typedef const ObsfmuBridge *ObsfmuBridgeFunction(void);
