@@ -57,7 +57,7 @@ import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ctypes import c_double, c_int, c_size_t, c_void_p
+from ctypes import PYFUNCTYPE, c_double, c_int, c_size_t, c_void_p
 
 import numpy as np
 from fmpy import extract, read_model_description
@@ -285,11 +285,11 @@ class _RawCalls:
                                               [pointer, pointer, size, pointer, pointer])
         self.do_step = self._function(dll, "fmi2DoStep", [pointer, c_double, c_double, c_int])
         self.get_real = self._function(dll, "fmi2GetReal", [pointer, pointer, size, pointer])
-        try:                                   # an obsfmu binary: its one-call step (fmus/native/loader.c)
-            self.batched = self._function(dll, "obsfmuDoStepBatched", [pointer, c_double, c_double, pointer, size,
-                                                                       pointer, pointer, pointer, size, pointer])
-        except AttributeError:
-            self.batched = None
+        # an obsfmu binary: its one-call step (fmus/native/loader.c), called with the GIL held -- the step runs
+        # Python code (the slave) that would take it back at once
+        prototype = PYFUNCTYPE(c_int, pointer, c_double, c_double, pointer, size, pointer, pointer, pointer, size,
+                               pointer)
+        self.batched = prototype(("obsfmuDoStepBatched", dll)) if hasattr(dll, "obsfmuDoStepBatched") else None
 
     @staticmethod
     def _function(dll, name, argtypes):

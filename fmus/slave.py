@@ -728,15 +728,17 @@ class BlockSlave(Fmi2Slave):
         flat[plan.positions] = values
         if self._feedthrough:
             self._outputs_cache = None
-        start, slope = flat.copy(), np.zeros_like(flat)      # new vectors: the block may keep views of them
+        start, slope = flat.copy(), np.zeros(flat.size)       # new vectors: the block may keep views of them
         slope[plan.positions] = slopes
         end = start + h * slope
-        self._derivatives = {port: slope[where] for port, where in plan.given.items()}
-        segments = None if block.stateless else {port: Segment(start[where], slope[where])
-                                                 for port, where in plan.given.items()}
-        if segments is not None and plan.held:
-            segments.update({port: self._segment(port, t, h) for port in plan.held})
-        if not self._checked_step(t, h, block, segments, {port: end[where] for port, where in plan.given.items()}):
+        derivatives, ends, segments = {}, {}, {}
+        for port, where in plan.given.items():
+            derivatives[port], ends[port] = slope[where], end[where]
+            segments[port] = Segment(start[where], slope[where])
+        for port in plan.held:
+            segments[port] = self._segment(port, t, h)
+        self._derivatives = derivatives
+        if not self._checked_step(t, h, block, None if block.stateless else segments, ends):
             return False
         self._write_outputs(plan)
         return True

@@ -281,7 +281,7 @@ def _kind(value) -> str:
 # ---------------------------------------------------------------------------------------- checks
 def within(values: np.ndarray, bound: float) -> bool:
     """True when every entry of ``values`` (1-D) is finite and at most ``bound`` in magnitude."""
-    square = values @ values if values.dtype.kind == "f" else np.vdot(values, values).real
+    square = values.dot(values) if values.dtype.kind == "f" else np.vdot(values, values).real
     if square <= bound * bound:                        # one cheap call decides almost always
         return True
     return bool(np.all(np.abs(values) <= bound))
