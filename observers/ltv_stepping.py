@@ -174,19 +174,21 @@ def rk4_linear(S: np.ndarray, dt: float, start, middle, end, nodes=(0.5,)):
     S_end = S + dt / 6.0 * (k1 + 2.0 * (k2 + k3) + k4)
     inside = []
     for th in nodes:
-        b1 = th - 1.5 * th ** 2 + 2.0 / 3.0 * th ** 3
-        b23 = th ** 2 - 2.0 / 3.0 * th ** 3
-        b4 = -0.5 * th ** 2 + 2.0 / 3.0 * th ** 3
+        b1, b23, b4 = dense_weights(th)
         inside.append(S + dt * (b1 * k1 + b23 * (k2 + k3) + b4 * k4))
     return S_end, inside
+
+
+@lru_cache(maxsize=16)
+def dense_weights(th: float) -> tuple[float, float, float]:
+    """RK4's third-order dense output at ``theta``: ``(b1, b2 = b3, b4)``."""
+    return (th - 1.5 * th ** 2 + 2.0 / 3.0 * th ** 3, th ** 2 - 2.0 / 3.0 * th ** 3,
+            -0.5 * th ** 2 + 2.0 / 3.0 * th ** 3)
 
 
 #: where a filter sub-step needs ``y`` (fractions of the sub-step): RK4's midpoint and end, then the
 #: two Gauss-Legendre nodes of the regression
 SUBSTEP_POINTS = (0.5, 1.0, 0.5 - 3.0 ** 0.5 / 6.0, 0.5 + 3.0 ** 0.5 / 6.0)
-#: RK4 dense-output weights ``(b1, b2 = b3, b4)`` at each of :data:`SUBSTEP_POINTS`
-_DENSE = tuple((th - 1.5 * th ** 2 + 2.0 / 3.0 * th ** 3, th ** 2 - 2.0 / 3.0 * th ** 3,
-                -0.5 * th ** 2 + 2.0 / 3.0 * th ** 3) for th in SUBSTEP_POINTS)
 
 
 class IntegralSamples:
@@ -277,6 +279,7 @@ def _rk4_integral(f: Callable, q: InputPolynomial, mu: float, count: int, dt: fl
         k2 = f(middle + mu * (J + 0.5 * dt * k1))
         k3 = f(middle + mu * (J + 0.5 * dt * k2))
         k4 = f(q.at(s + dt) + mu * (J + dt * k3))
-        points.append(tuple(J + dt * (b1 * k1 + b23 * (k2 + k3) + b4 * k4) for b1, b23, b4 in _DENSE))
+        points.append(tuple(J + dt * (b1 * k1 + b23 * (k2 + k3) + b4 * k4)
+                            for b1, b23, b4 in map(dense_weights, SUBSTEP_POINTS)))
         J = points[-1][1]
     return J, points
