@@ -64,7 +64,7 @@ from .estimation import LeastSquaresForgetting
 from .estimation.exponential import phi1
 from .integrators import DEFAULT_SUBSTEP_BUDGET, require_budget, substep_count
 from .ltv_stepping import (SUBSTEP_POINTS, IntegralSamples, PolynomialInputs, output_function, resolved_output,
-                           rk4_linear, time_function)
+                           rk4_linear, substep_points, time_function)
 
 __all__ = ["LTVAdaptiveObserver"]
 
@@ -220,9 +220,8 @@ class LTVAdaptiveObserver(Block):
         estimate ``mu = C^T m_hat``, unless ``|mu| h > 0.5`` (a wild estimate early on: the
         polynomial alone then), which also keeps the RK4 of ``int f(y)`` stable.
         """
-        dt = h / count
         if not self.f_correction:
-            return [tuple(y.at((i + th) * dt) for th in SUBSTEP_POINTS) for i in range(count)], self.integral
+            return substep_points(y, count), self.integral
         times, _ = history.history("y")                # the polynomial's nodes, ending at t + h
         mu = float(self.C @ self.estimator.theta_hat[3 * self.n:])
         past = self.integral.at(times[:-1]) if abs(mu) * h <= 0.5 else None

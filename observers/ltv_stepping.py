@@ -40,7 +40,7 @@ import numpy as np
 from .checks import ParameterError, SignalError
 
 __all__ = ["time_function", "output_function", "InputPolynomial", "PolynomialInputs", "rk4_linear",
-           "IntegralSamples", "resolved_output", "SUBSTEP_POINTS"]
+           "IntegralSamples", "resolved_output", "substep_points", "SUBSTEP_POINTS"]
 
 
 def time_function(name: str, function: Callable, shape: tuple[int, ...]) -> Callable:
@@ -191,6 +191,12 @@ def dense_weights(th: float) -> tuple[float, float, float]:
 SUBSTEP_POINTS = (0.5, 1.0, 0.5 - 3.0 ** 0.5 / 6.0, 0.5 + 3.0 ** 0.5 / 6.0)
 
 
+def substep_points(y: InputPolynomial, count: int) -> list[tuple[float, ...]]:
+    """The polynomial ``y`` at :data:`SUBSTEP_POINTS` of each of ``count`` equal sub-steps."""
+    dt = y.h / count
+    return [tuple(y.at((i + th) * dt) for th in SUBSTEP_POINTS) for i in range(count)]
+
+
 class IntegralSamples:
     """The running integral ``I = int f(y) dt`` at the last ``degree + 1`` communication points.
 
@@ -252,7 +258,7 @@ def resolved_output(f: Callable, y: InputPolynomial, times: tuple[float, ...], p
     gauss = SUBSTEP_POINTS[2:]
     J_end = sum(0.5 * dt * f(y.at((i + node) * dt)) for i in range(count) for node in gauss)
     if past is None or not mu:
-        return [tuple(y.at((i + th) * dt) for th in SUBSTEP_POINTS) for i in range(count)], J_end
+        return substep_points(y, count), J_end
     rows = _monomial_map(tuple(round((time - times[-2]) / h, 12) for time in times))
 
     def without_fast_part(J_end):                      # q = p - mu Pi J, so that y = q + mu J
@@ -281,5 +287,5 @@ def _rk4_integral(f: Callable, q: InputPolynomial, mu: float, count: int, dt: fl
         k4 = f(q.at(s + dt) + mu * (J + dt * k3))
         points.append(tuple(J + dt * (b1 * k1 + b23 * (k2 + k3) + b4 * k4)
                             for b1, b23, b4 in map(dense_weights, SUBSTEP_POINTS)))
-        J = points[-1][1]
+        J = points[-1][1]                              # theta = 1: RK4's own step
     return J, points
