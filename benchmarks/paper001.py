@@ -10,8 +10,9 @@ of ``theta_hat`` from the reference on a 0.01 s grid -- so speed is never read w
 
 The estimator is stiff (``gamma Psi F Psi^T ~ 1e4 1/s`` at t = 0) but the observer integrates it
 exactly in information form, so it does not force a small communication step: 1e-3 s is
-accurate for the bounded case; the paper case needs 1e-4 s because of its output ``y``
-(see docs/paper001.md).  FMUs are built once (not timed).
+accurate for the bounded case; the paper case's fast output ``y`` needs the observer's
+``f_correction`` at 1e-3 s (its default) and 1e-4 s without it (see docs/paper001.md).  FMUs are
+built once (not timed).
 
     .venv/bin/python benchmarks/paper001.py [--cases bounded paper] [--paper-steps 1e-3 1e-4]
 """

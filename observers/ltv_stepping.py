@@ -5,6 +5,8 @@ r"""Stepping helpers shared by the LTV plant and observer of paper 001.
 * :class:`PolynomialInputs` -- the inputs inside a communication step as the polynomial through
   the last ``degree + 1`` communication points (order ``degree + 1``) instead of the chord.
 * :func:`rk4_linear` -- RK4 for ``S' = A0(t) S + G(t)`` with values inside the step (dense output).
+* :func:`resolved_output` -- the output inside a step with the fast part that ``m f(y)`` drives
+  resolved (``f_correction``), and :class:`IntegralSamples`, the samples of ``int f(y)`` it needs.
 
 Why polynomials
 ---------------
@@ -37,7 +39,8 @@ import numpy as np
 
 from .checks import ParameterError, SignalError
 
-__all__ = ["time_function", "output_function", "InputPolynomial", "PolynomialInputs", "rk4_linear"]
+__all__ = ["time_function", "output_function", "InputPolynomial", "PolynomialInputs", "rk4_linear",
+           "IntegralSamples", "resolved_output", "substep_points", "SUBSTEP_POINTS"]
 
 
 def time_function(name: str, function: Callable, shape: tuple[int, ...]) -> Callable:
@@ -171,8 +174,118 @@ def rk4_linear(S: np.ndarray, dt: float, start, middle, end, nodes=(0.5,)):
     S_end = S + dt / 6.0 * (k1 + 2.0 * (k2 + k3) + k4)
     inside = []
     for th in nodes:
-        b1 = th - 1.5 * th ** 2 + 2.0 / 3.0 * th ** 3
-        b23 = th ** 2 - 2.0 / 3.0 * th ** 3
-        b4 = -0.5 * th ** 2 + 2.0 / 3.0 * th ** 3
+        b1, b23, b4 = dense_weights(th)
         inside.append(S + dt * (b1 * k1 + b23 * (k2 + k3) + b4 * k4))
     return S_end, inside
+
+
+@lru_cache(maxsize=16)
+def dense_weights(th: float) -> tuple[float, float, float]:
+    """RK4's third-order dense output at ``theta``: ``(b1, b2 = b3, b4)``."""
+    return (th - 1.5 * th ** 2 + 2.0 / 3.0 * th ** 3, th ** 2 - 2.0 / 3.0 * th ** 3,
+            -0.5 * th ** 2 + 2.0 / 3.0 * th ** 3)
+
+
+#: where a filter sub-step needs ``y`` (fractions of the sub-step): RK4's midpoint and end, then the
+#: two Gauss-Legendre nodes of the regression
+SUBSTEP_POINTS = (0.5, 1.0, 0.5 - 3.0 ** 0.5 / 6.0, 0.5 + 3.0 ** 0.5 / 6.0)
+
+
+def substep_points(y: InputPolynomial, count: int) -> list[tuple[float, ...]]:
+    """The polynomial ``y`` at :data:`SUBSTEP_POINTS` of each of ``count`` equal sub-steps."""
+    dt = y.h / count
+    return [tuple(y.at((i + th) * dt) for th in SUBSTEP_POINTS) for i in range(count)]
+
+
+class IntegralSamples:
+    """The running integral ``I = int f(y) dt`` at the last ``degree + 1`` communication points.
+
+    Immutable, with the fixed layout of :class:`PolynomialInputs`' samples ``(count, times,
+    values)`` (zeros in front), so that an FMU state restores into any history.  Only differences
+    of ``I`` matter (a polynomial reproduces constants): a restarted history starts at 0.
+    """
+
+    def __init__(self, degree: int, samples: tuple | None = None):
+        self.samples = samples or (0, (0.0,) * (degree + 1), (0.0,) * (degree + 1))
+
+    def at(self, times) -> list[float] | None:
+        """``I(time) - I(times[-1])`` for ``times`` (oldest first, ``times[-1]`` the step's start);
+        None when a time is not a sample (the history restarted)."""
+        count, stored, values = self.samples
+        known = {round(time, 12): value for time, value in zip(stored[len(stored) - count:],
+                                                                values[len(values) - count:])}
+        found = [known.get(round(time, 12)) for time in times]
+        if any(value is None for value in found):
+            return None
+        return [value - found[-1] for value in found]
+
+    def after(self, t: float, h: float, change: float) -> "IntegralSamples":
+        """The samples after a step ``[t, t + h]`` over which ``I`` changed by ``change``."""
+        count, times, values = self.samples
+        size = len(times)
+        times, values = list(times[size - count:]), list(values[size - count:])
+        if not (times and abs(times[-1] - t) <= 1e-9 * max(1.0, abs(t))):
+            times, values = [t], [0.0]
+        times, values = (times + [t + h])[-size:], (values + [values[-1] + change])[-size:]
+        padding = (0.0,) * (size - len(times))
+        return IntegralSamples(size - 1, (len(times), padding + tuple(times), padding + tuple(values)))
+
+
+def resolved_output(f: Callable, y: InputPolynomial, times: tuple[float, ...], past: list[float] | None,
+                    mu: float, count: int) -> tuple[list[tuple[float, ...]], float]:
+    r"""``y`` at :data:`SUBSTEP_POINTS` of each of ``count`` equal sub-steps, and ``int f(y)`` over the step.
+
+    The output of plant (1) obeys ``y' = C^T (A x + k y + b u) + mu f(y)``, ``mu = C^T m``: with
+    ``I = int f(y) dt``, ``y - mu I`` is as smooth as the state, while ``y`` itself wiggles at
+    ``|y'|`` rad/s with amplitude ``|mu| / |y'|`` -- more than a polynomial through samples 1 ms
+    apart can follow once ``|y'|`` is in the hundreds.  So the polynomial interpolates ``y - mu I``
+    (``p`` and ``Pi I``: the polynomials through the samples of ``y`` at ``times`` and of ``I``)
+    and inside the step
+
+    .. math:: y(s) = p(s) + \mu\,(J(s) - \Pi J(s)), \qquad J' = f(y), \quad J(0) = 0,
+
+    ``J = I - I(t)``, integrated by RK4 on the sub-steps (its dense output gives the points inside
+    them).  ``Pi J`` depends on ``J(h)`` itself: one pass with ``J(h)`` from ``f(p)`` and one with
+    the result (the map contracts by ``|mu| h``).  ``y`` still passes through every sample; with
+    ``mu = 0`` (or ``past`` None: no samples of ``I``) it is the polynomial ``p``.
+
+    ``past`` are ``J`` at ``times[:-1]`` (``times[-1]`` is the step's end).  The exact ``mu`` is
+    ``C^T m``; the observer passes its estimate (the error it leaves is second order: the wiggle
+    of the other states).
+    """
+    h = y.h
+    dt = h / count
+    gauss = SUBSTEP_POINTS[2:]
+    J_end = sum(0.5 * dt * f(y.at((i + node) * dt)) for i in range(count) for node in gauss)
+    if past is None or not mu:
+        return substep_points(y, count), J_end
+    rows = _monomial_map(tuple(round((time - times[-2]) / h, 12) for time in times))
+
+    def without_fast_part(J_end):                      # q = p - mu Pi J, so that y = q + mu J
+        values = list(past) + [J_end]
+        coefficients = list(y.coefficients) + [0.0] * (len(rows) - len(y.coefficients))
+        for k, row in enumerate(rows):
+            coefficients[k] -= mu * sum(m * v for m, v in zip(row, values)) / h ** k
+        return InputPolynomial(tuple(coefficients), h)
+
+    for _ in range(2):                                 # J(h) from f(p), then from the first pass
+        J_end, J_points = _rk4_integral(f, without_fast_part(J_end), mu, count, dt)
+    q = without_fast_part(J_end)                       # Pi J through the final J(h): y(h) is the sample
+    return [tuple(q.at((i + th) * dt) + mu * J for th, J in zip(SUBSTEP_POINTS, J_i))
+            for i, J_i in enumerate(J_points)], J_end
+
+
+def _rk4_integral(f: Callable, q: InputPolynomial, mu: float, count: int, dt: float):
+    """RK4 for ``J' = f(q(s) + mu J)``, ``J(0) = 0``: ``J(h)`` and ``J`` at :data:`SUBSTEP_POINTS`."""
+    J, points = 0.0, []
+    for i in range(count):
+        s = i * dt
+        middle = q.at(s + 0.5 * dt)
+        k1 = f(q.at(s) + mu * J)
+        k2 = f(middle + mu * (J + 0.5 * dt * k1))
+        k3 = f(middle + mu * (J + 0.5 * dt * k2))
+        k4 = f(q.at(s + dt) + mu * (J + dt * k3))
+        points.append(tuple(J + dt * (b1 * k1 + b23 * (k2 + k3) + b4 * k4)
+                            for b1, b23, b4 in map(dense_weights, SUBSTEP_POINTS)))
+        J = points[-1][1]                              # theta = 1: RK4's own step
+    return J, points

@@ -13,7 +13,7 @@ import pytest
 from observers.block import Segment
 from observers.checks import ParameterError, SignalError
 from observers.ltv_adaptive import LTVAdaptiveObserver
-from observers.ltv_stepping import PolynomialInputs
+from observers.ltv_stepping import SUBSTEP_POINTS, IntegralSamples, PolynomialInputs, resolved_output
 from plants.ltv import OutputNonlinearLTVPlant
 from plants.paper001 import A_paper, L_paper, f_sin
 from plants.signals import SampledNoise
@@ -146,6 +146,57 @@ def test_the_input_history_is_rebound_not_changed():
         history.step(0.0, 0.1, {"y": Segment([np.nan], [0.0])})
     with pytest.raises(ParameterError, match="input_degree: expected an integer from 1 to 5"):
         PolynomialInputs(7)
+
+
+def fast_output(mu=-4.0):
+    """``y' = 1500 + 2e4 t + mu sin(y)``, ``I' = sin(y)`` solved tightly (scipy DOP853): the wiggle
+    that ``m f(y)`` puts on the paper case's output late in the run (|y'| ~ 1.5e3 rad/s, h = 1e-3)."""
+    from scipy.integrate import solve_ivp
+    return solve_ivp(lambda t, z: [1500.0 + 2e4 * t + mu * math.sin(z[0]), math.sin(z[0])], (0.0, 5e-3),
+                     [2.0, 0.0], method="DOP853", rtol=1e-13, atol=1e-13, dense_output=True).sol
+
+
+@pytest.mark.parametrize("degree", [2, 3, 4])
+def test_resolving_the_fast_part_of_y_follows_it_between_samples(degree):
+    """``f_correction``: y inside a step from its samples, the samples of ``int f(y)`` and ``mu = C^T m``."""
+    mu, h, count = -4.0, 1e-3, 8
+    exact = fast_output(mu)
+    history = PolynomialInputs(degree)
+    for k in range(4):                                   # the 4th step [3h, 4h] has the whole history
+        polynomials, after = history.step(k * h, h, {"y": Segment.between([exact(k * h)[0]], [exact((k + 1) * h)[0]], h)})
+        history = after if k < 3 else history
+    t, times = 3 * h, after.history("y")[0]
+    past = [exact(s)[1] - exact(t)[1] for s in times[:-1]]
+    truth = np.array([[exact(t + (i + th) * h / count)[0] for th in SUBSTEP_POINTS] for i in range(count)])
+    error = {}
+    for estimate in (0.0, mu, 1.01 * mu):
+        points, change = resolved_output(math.sin, polynomials["y"], times, past, estimate, count)
+        error[estimate] = np.abs(np.array(points) - truth).max()
+        assert change == pytest.approx(exact(t + h)[1] - exact(t)[1], abs=2e-7)   # int f(y): 1e-7 (p), 4e-10
+    assert error[0.0] > 1e-4                              # the polynomial alone: 2.9e-4 to 4.9e-4
+    assert error[mu] < 1e-7                               # 8.9e-9
+    assert error[1.01 * mu] < 0.02 * error[0.0]           # 1 % off in mu: 1 % of the polynomial's error
+
+
+def test_the_samples_of_the_integral_restart_with_the_history_and_are_rebound():
+    samples = IntegralSamples(2)
+    first = samples.after(0.0, 0.1, 0.5)
+    second = first.after(0.1, 0.1, 0.25)
+    assert samples.samples == (0, (0.0,) * 3, (0.0,) * 3) and first is not samples   # immutable, fixed layout
+    assert second.at((0.0, 0.1, 0.2)) == [-0.75, -0.25, 0.0]                       # relative to the last one
+    assert second.at((0.05, 0.2)) is None                                          # not a sample
+    assert second.after(0.3, 0.1, 1.0).samples == (2, (0.0, 0.3, 0.4), (0.0, 0.0, 1.0))   # a gap restarts
+
+
+def test_resolving_the_fast_part_changes_nothing_while_y_is_slow():
+    """Bounded case, 1 s at 1e-3: with ``f_correction`` the observer stays on the reference
+    (``C^T m_hat`` is far off in the first steps: the guard ``|mu| h <= 0.5`` holds it off)."""
+    times = np.linspace(0.0, 1.0, 101)
+    reference = ref.simulate(times, **ref.BOUNDED)
+    _, _, plain, _ = run_blocks(ref.BOUNDED, 1.0, 1e-3)
+    _, _, corrected, _ = run_blocks(ref.BOUNDED, 1.0, 1e-3, f_correction=True)
+    assert np.abs(corrected[::10] - reference["theta_hat"]).max() < 2e-6   # 2.5e-7 (without: 2.5e-7)
+    assert np.abs(corrected - plain).max() < 1e-6                          # 1.3e-8
 
 
 # --- bad input: clear, early, naming the parameter -------------------------------------------

@@ -47,7 +47,15 @@ def _observer(p, options):
     return LTVAdaptiveObserver(_function(options, "A"), p["C"], _function(options, "L"), _function(options, "f"),
                                float(p["gamma"]), float(p["beta"]), float(p["f0"]), float(p["M"]),
                                p["x_hat0"], p["k_hat0"], p["b_hat0"], p["m_hat0"],
-                               float(p["max_substep"]), float(p["max_dy"]), _degree(p), _budget(p))
+                               float(p["max_substep"]), float(p["max_dy"]), _degree(p), _budget(p),
+                               _flag(p, "f_correction"))
+
+
+def _flag(p, name: str) -> bool:
+    value = float(p.get(name, 0.0))
+    if value not in (0.0, 1.0):
+        raise ParameterError(f"{name}: expected 0 or 1, got {value:g}")
+    return bool(value)
 
 
 def _budget(p):
@@ -115,7 +123,7 @@ def ltv_plant_definition(model_name: str, A, C, f, k, b, m, x0, *, noise_std=0.0
 
 def ltv_observer_definition(model_name: str, A, C, L, f, *, gamma=1000.0, beta=1.0, f0=0.1, M=1e12,
                             x_hat0=None, k_hat0=None, b_hat0=None, m_hat0=None, max_substep=1e-3,
-                            max_dy=0.2, input_degree=2, description: str = "") -> FmuDefinition:
+                            max_dy=0.2, input_degree=2, f_correction=0, description: str = "") -> FmuDefinition:
     """Adaptive observer FMU of paper 001 (filters (2)-(6), regression (7), LS with forgetting, (10)).
 
     ``A``, ``L``, ``f`` are module-level functions or ``"module:function"`` references; ``C`` is
@@ -134,7 +142,10 @@ def ltv_observer_definition(model_name: str, A, C, L, f, *, gamma=1000.0, beta=1
         _scalar("f0", f0, "F(0) = I / f0"),
         _scalar("M", M, "bound on the largest eigenvalue of F"),
     ] + [Parameter.of(name, zeros if value is None else value, text) for name, value, text in estimates] \
-      + _stepping(max_substep, max_dy, input_degree)
+      + _stepping(max_substep, max_dy, input_degree) \
+      + [_scalar("f_correction", f_correction, "1: inside a step y follows the polynomial of y - C^T m_hat "
+                 "int f(y) plus that fast part (for outputs f(y) makes oscillate between samples); "
+                 "0: the polynomial of y")]
     definition = FmuDefinition(
         model_name=model_name, kind=OBSERVER_KIND, options=options,
         description=description or (f"paper 001 adaptive observer: filters (2)-(6), regression (7), least squares "

@@ -17,35 +17,45 @@ Default step and coupling, measured through the FMUs against the monolithic Rada
 the CPU of the blocks is measured too).  "linear" coupling with Gauss-Seidel (source, plant,
 observer) interpolates ``y`` and ``u`` across the step; the blocks follow the polynomial of degree
 ``input_degree`` through the last communication points (``observers.ltv_stepping.PolynomialInputs``),
-RK4 sub-steps of at most ``max_substep``; ``ramp`` splits the master's first step (no history yet).
+RK4 sub-steps of at most ``max_substep``; ``ramp`` splits the master's first step (no history yet);
+``f_correction`` (observer) resolves the fast part of ``y`` that ``m sin(y)`` drives
+(``observers.ltv_stepping.resolved_output``).
 
-========  =======  ======  ===========  ====  ==========================
-case      step     degree  max_substep  ramp  max ``|theta_hat - ref|``
-========  =======  ======  ===========  ====  ==========================
-bounded   1e-3     2       1e-3         0     2.5e-7  (the old default)
-bounded   1e-2     2       5e-3         6     2.2e-5
-bounded   1e-2     3       5e-3         6     1.7e-6
-bounded   1e-2     4       5e-3         0     1.9e-4
-bounded   1e-2     4       5e-3         6     1.3e-7  (default; every point 9.5e-8)
-bounded   1e-2     4       1e-2         6     8.7e-7
-bounded   1.25e-2  4       5e-3         6     2.8e-7
-bounded   2.5e-2   4       5e-3         6     1.0e-5
-paper     1e-4     2       1e-3         0     3.0e-5  (default)
-paper     1e-4     3       1e-3         0     3.9e-5
-paper     2e-4     2       1e-3         0     4.0e-4
-paper     2.5e-4   4       1e-3         0     1.3e-3
-========  =======  ======  ===========  ====  ==========================
+========  =======  ======  ===========  ====  ============  ==========================
+case      step     degree  max_substep  ramp  f_correction  max ``|theta_hat - ref|``
+========  =======  ======  ===========  ====  ============  ==========================
+bounded   1e-3     2       1e-3         0     0             2.5e-7  (the old default)
+bounded   1e-2     2       5e-3         6     0             2.2e-5
+bounded   1e-2     3       5e-3         6     0             1.7e-6
+bounded   1e-2     4       5e-3         0     0             1.9e-4
+bounded   1e-2     4       5e-3         6     0             1.3e-7  (default; every point 9.5e-8)
+bounded   1e-2     4       5e-3         6     1             1.3e-7
+bounded   1e-2     4       1e-2         6     0             8.7e-7
+bounded   1.25e-2  4       5e-3         6     0             2.8e-7
+bounded   2.5e-2   4       5e-3         6     0             1.0e-5
+paper     1e-4     2       1e-3         0     0             3.0e-5  (the old default, 150 000 steps)
+paper     2e-4     2       1e-3         0     0             4.0e-4
+paper     1e-3     2       1e-3         6     0             2.5e-2
+paper     1e-3     2       1e-3         6     1             9.8e-5
+paper     1e-3     3       1e-3         6     1             2.7e-5  (default, 15 000 steps)
+paper     1e-3     4       1e-3         6     1             3.8e-5
+paper     5e-4     3       1e-3         6     1             7.6e-6
+paper     2e-3     3       2e-3         6     1             5.8e-5
+paper     2e-3     4       2e-3         6     1             3.6e-5
+========  =======  ======  ===========  ====  ============  ==========================
 
 Held inputs cost two orders of magnitude (bounded, 1e-3 s: 3.2e-2); Jacobi (extrapolated ``y``)
-one to two (7.2e-4).  Why the paper case needs 1e-4 s: ``m sin(y)`` makes ``y`` wiggle at
+one to two (7.2e-4).  Why the paper case needs ``f_correction``: ``m sin(y)`` makes ``y`` wiggle at
 ``|y'|`` rad/s (up to ~3e3 by 15 s) with amplitude ``|m| / |y'|``; samples 1e-3 s apart cannot
-resolve it (``|y'| h ~ 1 rad``) and a higher degree does not help -- with the exact ``y`` inside
-the step the observer is within 2.9e-6 at 1e-3 s.  The estimator's stiffness
-(``gamma Psi F Psi^T ~ 1e4`` 1/s at t = 0) plays no role: it is integrated exactly.  The bounded
-case's settings are start values of the shared FMUs (``BOUNDED_STEPPING``); with noisy samples
-use ``input_degree = 1`` (a quartic through noisy points amplifies the noise).  Defaults run in
-~1.5 s CPU (bounded, 2 000 steps, whole ``obsfmu run``) and ~60 s (paper, 150 000 steps).
-See ``docs/paper001.md``.
+resolve it (``|y'| h ~ 1 rad``) and a higher degree does not help (without it the default step
+had to be 1e-4 s).  ``y - (C^T m) int sin(y)`` is smooth, so the observer interpolates that and
+adds the fast part back with its estimate ``C^T m_hat``.  Sub-steps let ``y`` move by at most
+0.1 in the (unstable) plant and 0.4 in the observer's filters (``PAPER_PLANT``, ``PAPER_OBSERVER``:
+start values of the shared FMUs, like the bounded case's ``BOUNDED_STEPPING``).  The estimator's
+stiffness (``gamma Psi F Psi^T ~ 1e4`` 1/s at t = 0) plays no role: it is integrated exactly.  With
+noisy samples use ``input_degree = 1`` (a quartic through noisy points amplifies the noise).
+Defaults run in ~1.5 s CPU (bounded, 2 000 steps, whole ``obsfmu run``) and ~10 s (paper,
+15 000 steps; 64 s at the old 1e-4 s).  See ``docs/paper001.md``.
 """
 
 from __future__ import annotations
@@ -218,9 +228,10 @@ CLAIMS = {
 }
 
 
-def _scenario(name, description, unknowns, stop_time, step, stepping=None, ramp=0):
+def _scenario(name, description, unknowns, stop_time, step, stepping=None, ramp=0, plant=None, observer=None):
     stepping = stepping or {}
-    starts = {"plant": {**plant_start(unknowns), **stepping}, "observer": dict(stepping)}
+    starts = {"plant": {**plant_start(unknowns), **stepping, **(plant or {})},
+              "observer": {**stepping, **(observer or {})}}
     return Scenario(name=name, description=description, definitions=definitions,
                     components=[(instance, model, starts.get(instance, {})) for instance, model in COMPONENTS],
                     connections=CONNECTIONS, stop_time=stop_time, step=step, order="gauss-seidel",
@@ -230,10 +241,15 @@ def _scenario(name, description, unknowns, stop_time, step, stepping=None, ramp=
 
 #: the bounded case's inside-the-step settings: quartic inputs, RK4 sub-steps of 5 ms (see the table)
 BOUNDED_STEPPING = {"input_degree": 4.0, "max_substep": 5e-3}
+#: the paper case's: cubic inputs, RK4 sub-steps over which y moves by at most 0.1 in the (unstable)
+#: plant and 0.4 in the observer's (stable) filters, which resolve the fast part of y (``f_correction``)
+PAPER_STEPPING = {"input_degree": 3.0, "max_substep": 1e-3}
+PAPER_PLANT = {"max_dy": 0.1}
+PAPER_OBSERVER = {"max_dy": 0.4, "f_correction": 1.0}
 
 SCENARIOS = [
     _scenario("ltv-ls", "paper 001: adaptive observer (LS with forgetting) of the paper's unstable LTV plant, 0..15 s",
-              PAPER, 15.0, 1e-4),
+              PAPER, 15.0, 1e-3, PAPER_STEPPING, ramp=6, plant=PAPER_PLANT, observer=PAPER_OBSERVER),
     _scenario("ltv-ls-bounded", "paper 001: the same FMUs, plant unknowns changed to a bounded case, 0..20 s",
               BOUNDED, 20.0, 1e-2, BOUNDED_STEPPING, ramp=6),
 ]
