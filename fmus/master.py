@@ -800,11 +800,13 @@ def _adaptive(stepper: _Stepper, start_time, stop_time, step, tolerance, order, 
     noise = np.zeros_like(stepper.live)          # per-output rounding noise of the difference, relative
     p = float(order)                             # the order of the error, learnt from rejected steps
     tried: tuple[int, np.ndarray] | None = None  # the last rejected attempt at this t: (k, difference)
+    saved = None                                 # the FMU states at t (kept across rejected attempts)
     if stepper.linear:
         stepper.probe_initial_slopes(t, step * 2.0**-20)
     while stop_time - t > 1e-12 * span:
         h = min(step * 2.0**k, stop_time - t)
-        saved = stepper.save()
+        if saved is None:
+            saved = stepper.save()
         stepper.round(t, h)
         coarse = stepper.live.copy()
         stepper.restore(saved)
@@ -834,6 +836,7 @@ def _adaptive(stepper: _Stepper, start_time, stop_time, step, tolerance, order, 
             loop.record(t + h, fine)
             t += h
             stepper.free(saved)
+            saved = None
             noise *= 0.999
             tried = None
             if growth < 0.5**(p + 1):     # the doubled step is expected to pass (noise does not grow)
@@ -842,7 +845,6 @@ def _adaptive(stepper: _Stepper, start_time, stop_time, step, tolerance, order, 
                 break
         else:
             stepper.restore(saved)
-            stepper.free(saved)
             tried = (k, difference * (2**p - 1))
             k = max(k - max(1, int(np.ceil(np.log2(error) / p))), -halvings)
     if forced:
