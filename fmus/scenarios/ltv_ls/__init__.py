@@ -237,12 +237,3 @@ SCENARIOS = [
     _scenario("ltv-ls-bounded", "paper 001: the same FMUs, plant unknowns changed to a bounded case, 0..20 s",
               BOUNDED, 20.0, 1e-2, BOUNDED_STEPPING, ramp=6),
 ]
-
-#: why the adaptive master refuses tight tolerances on the paper case (issue 14, target 5; docs/performance.md)
-PAPER_ADAPTIVE_FLOOR = (1e-5, (
-    "the paper case's estimate is resolved only to about 2e-6 late in the run (P is ill-conditioned as |y| "
-    "grows: the stored Radau reference, the DOP853 reference at rtol 1e-12 and fixed steps of 5e-5 and 2.5e-5 s "
-    "all differ from each other by 2.0-2.3e-6 near t = 14.85 s), so a tighter tolerance only drives the step "
-    "down: at tol 1e-6 the adaptive master took 773 s CPU for an error of 2.1e-6, which the fixed step of "
-    "5e-5 s reaches (2.3e-6) in 140 s"))
-next(s for s in SCENARIOS if s.name == "ltv-ls").adaptive_floor = PAPER_ADAPTIVE_FLOOR
