@@ -815,7 +815,10 @@ def _adaptive(stepper: _Stepper, start_time, stop_time, step, tolerance, order, 
     rounding noise of that output (e.g. ``F_max = 1/lambda_min(P)`` of the paper-001 observer,
     relative noise 1e-9), which no step length removes.  Its level relative to the output is
     remembered per output (decaying by 0.1 % per accepted step) and tolerated, instead of
-    driving the step to its minimum for the rest of the run.
+    driving the step to its minimum for the rest of the run.  Noise does not grow with the step,
+    so only the outputs above their noise level decide whether the step is doubled (otherwise
+    a noisy output kept the step where it was: ``ltv-ls-bounded`` at tol 1e-6 spent 840 of its
+    1 492 steps at 5 ms in its last 5 s).
     """
     span = stop_time - start_time
     t, k, k_max = start_time, 0, int(np.floor(np.log2(span / 10 / step))) if span / 10 > step else 0
@@ -823,11 +826,13 @@ def _adaptive(stepper: _Stepper, start_time, stop_time, step, tolerance, order, 
     noise = np.zeros_like(stepper.live)          # per-output rounding noise of the difference, relative
     p = float(order)                             # the order of the error, learnt from rejected steps
     tried: tuple[int, np.ndarray] | None = None  # the last rejected attempt at this t: (k, difference)
+    saved = None                                 # the FMU states at t (kept across rejected attempts)
     if stepper.linear:
         stepper.probe_initial_slopes(t, step * 2.0**-20)
     while stop_time - t > 1e-12 * span:
         h = min(step * 2.0**k, stop_time - t)
-        saved = stepper.save()
+        if saved is None:
+            saved = stepper.save()
         stepper.round(t, h)
         coarse = stepper.live.copy()
         stepper.restore(saved)
@@ -847,23 +852,25 @@ def _adaptive(stepper: _Stepper, start_time, stop_time, step, tolerance, order, 
                 observed = np.log2(tried[1][worst] / difference[worst]) / levels - 1.0
                 p = float(np.clip(0.5 * (p + observed), order, 2 * order + 1))
         difference = difference / (2**p - 1)
-        allowed = magnitude * np.maximum(tolerance * (h / span), noise)
-        error = float(np.max(difference / allowed)) if fine.size else 0.0
+        per_step = magnitude * (tolerance * (h / span))
+        error = float(np.max(difference / np.maximum(per_step, magnitude * noise))) if fine.size else 0.0
+        truncation = difference > magnitude * noise       # the outputs above their rounding noise
+        growth = float(np.max(difference[truncation] / per_step[truncation])) if truncation.any() else 0.0
         if error <= 1.0 or k <= -halvings:
             forced += error > 1.0
             loop.record(t + h / 2, middle)
             loop.record(t + h, fine)
             t += h
             stepper.free(saved)
+            saved = None
             noise *= 0.999
             tried = None
-            if error < 0.5**(p + 1):      # the doubled step is expected to pass
+            if growth < 0.5**(p + 1):     # the doubled step is expected to pass (noise does not grow)
                 k = min(k + 1, k_max)
             if not loop.accepted(t, (t - start_time) / span):
                 break
         else:
             stepper.restore(saved)
-            stepper.free(saved)
             tried = (k, difference * (2**p - 1))
             k = max(k - max(1, int(np.ceil(np.log2(error) / p))), -halvings)
     if forced:

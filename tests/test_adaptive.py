@@ -5,7 +5,9 @@
   the reason; ship, ltv-ls and ltv-ls-bounded run.
 * ``ltv-ls-bounded`` at ``--tol 1e-6`` used not to finish in 900 s: the rounding noise of one
   output (``F_max = 1/lambda_min(P)``, relative 1e-9) drove the step to its minimum.  It now
-  finishes in seconds and within the tolerance of the independent reference.
+  finishes in seconds and within the tolerance of the independent reference.  Noise does not
+  grow with the step: an output at its noise level must not stop the step from growing (it
+  kept 840 of 1 492 steps at 5 ms in the last 5 s).
 """
 
 from __future__ import annotations
@@ -44,7 +46,7 @@ def test_a_tight_tolerance_on_the_bounded_ltv_case_finishes_and_meets_it(build_d
         warnings.simplefilter("error")                            # no step forced at the minimum
         result, _ = run("ltv-ls-bounded", build_dir, order="adaptive", tolerance=1e-6)
     assert result.time[-1] == pytest.approx(get("ltv-ls-bounded").stop_time)
-    assert len(result.time) < 10_000                               # measured 3 100 points
+    assert len(result.time) < 2_400            # 1 737 points; 2 985 when a noisy output blocked growth
     reference = paper001.simulate(result.time, **paper001.BOUNDED)
     assert np.abs(result.vector("observer.theta_hat") - reference["theta_hat"]).max() < 1e-6   # 2.7e-7
     assert np.all(np.diff(result.time) > 0)
