@@ -5,8 +5,7 @@ minimum of ``--repeats`` interleaved repeats (every case of a section is run onc
 
 1. FMU master vs the direct loop of the same blocks (:mod:`benchmarks.direct_loop`), per
    communication step (the cost of ``2 count`` more steps: a run's set-up -- reset and
-   initialization of the FMUs, construction of the blocks -- cancels out and is printed
-   apart), for ``ship``, ``ltv-ls-bounded``, ``uio-ftdrem`` and integrator chains of
+   initialization of the FMUs, construction of the blocks -- cancels out), for ``ship``, ``ltv-ls-bounded``, ``uio-ftdrem`` and integrator chains of
    order 2..50 built from a config (:mod:`benchmarks.chains`); with the split of the FMU path's
    cost: block (the direct loop), generic slave (the same slave objects driven in this process
    the way the C bridge drives them), and what remains (C bridge, ctypes, master).
@@ -204,11 +203,9 @@ def section_per_step(args, build):
                 for (key, k) in best:
                     best[key, k] = min(best[key, k], cpu(lambda: paths[key](k)))
         per_step = {key: (best[key, 3 * count] - best[key, count]) / (2 * count) * 1e6 for key in paths}
-        setup = {key: best[key, count] * 1e3 - per_step[key] * count * 1e-3 for key in paths}
         fmu, slave, block = (per_step[k] for k in ("fmu", "slave", "direct"))
         ratio = fmu / block
-        split = (f"block {block:.0f}, slave {slave - block:.0f}, bridge+ctypes+master {fmu - slave:.0f} us; "
-                 f"set-up of a run {setup['fmu']:.1f} vs {setup['direct']:.1f} ms")
+        split = f"block {block:.0f}, slave {slave - block:.0f}, bridge+ctypes+master {fmu - slave:.0f} us"
         report(f"1. {label}: FMU/direct", today.get(label, "4.4-8.1x" if "chain" in label else "-"),
                f"{fmu:.0f} vs {block:.0f} us ({ratio:.2f}x; {split})", f"<= {goal.get(label, 1.5)}x",
                ratio <= goal.get(label, 1.5))

@@ -2,7 +2,9 @@
 
 * Scenarios whose observers step doubling cannot measure (the finite-time DREM ones: uio-ftdrem,
   state-affine-*) or that are discrete (discrete-gpebo) are refused before anything runs, with
-  the reason; ship, ltv-ls and ltv-ls-bounded run.
+  the reason; ship, ltv-ls and ltv-ls-bounded run.  ``ltv-ls`` (the paper case) is refused below
+  tol 1e-5: there its error stops improving (1.2-1.4e-5 at tol 1e-5, 3e-6 and 1e-6) while the cost
+  grows; a fixed step reaches less (``Scenario.adaptive_floor``).
 * ``ltv-ls-bounded`` at ``--tol 1e-6`` used not to finish in 900 s: the rounding noise of one
   output (``F_max = 1/lambda_min(P)``, relative 1e-9) drove the step to its minimum.  It now
   finishes in seconds and within the tolerance of the independent reference.  Noise does not
@@ -31,6 +33,17 @@ def test_scenarios_it_cannot_run_are_refused_at_once_with_the_reason(name, reaso
         run(name, tmp_path, order="adaptive", tolerance=1e-4)
     assert time.process_time() - start < 1.0                      # nothing built, nothing run
     assert not list(tmp_path.iterdir())
+
+
+def test_a_tolerance_below_what_the_paper_ltv_case_resolves_is_refused_at_once(tmp_path):
+    start = time.process_time()
+    with pytest.raises(SimulationError, match=r"ltv-ls: the adaptive master cannot run this scenario at tol 1e-06 "
+                       r"\(use a tolerance of at least 1e-05, or a fixed step\): below tol 1e-5 its error stops "
+                       r"improving .*--step 5e-4"):
+        run("ltv-ls", tmp_path, order="adaptive", tolerance=1e-6, stop_time=0.01)   # short if not refused
+    assert time.process_time() - start < 1.0                      # nothing built, nothing run
+    assert not list(tmp_path.iterdir())
+    assert get("ltv-ls-bounded").adaptive_floor is None           # its tol 1e-6 run is tested below
 
 
 def test_every_scenario_either_runs_adaptively_or_says_why():

@@ -67,6 +67,8 @@ class Scenario:
     output_interval: float | None = None
     #: why the adaptive master cannot run this scenario (it is then refused at once), or None
     not_adaptive: str | None = None
+    #: ``(smallest tolerance, why)``: the adaptive master refuses tighter tolerances at once, with the reason
+    adaptive_floor: tuple[float, str] | None = None
     #: the first step split into h/2^ramp, ..., h/2 (see :func:`fmus.master.cosimulate`)
     ramp: int = 0
     #: what the paper claims for this example, in our words and numbers (for ``obsfmu report``)
@@ -286,6 +288,10 @@ def run(name: str, build_dir: Path | str = "build", *, stop_time: float | None =
     scenario = get(name)
     if (order or scenario.order) == "adaptive" and scenario.not_adaptive:
         raise SimulationError(f"{name}: the adaptive master cannot run this scenario: {scenario.not_adaptive}")
+    floor = scenario.adaptive_floor
+    if (order or scenario.order) == "adaptive" and floor and tolerance < floor[0]:
+        raise SimulationError(f"{name}: the adaptive master cannot run this scenario at tol {tolerance:g} (use a "
+                              f"tolerance of at least {floor[0]:g}, or a fixed step): {floor[1]}")
     fmus = ensure_fmus(scenario, Path(build_dir), fmi_version=fmi_version)
     the_system = system(scenario, fmus, overrides)
     settings = dict(stop_time=scenario.stop_time if stop_time is None else stop_time,
