@@ -210,10 +210,10 @@ def rk4_step(f: Callable[[float, np.ndarray], np.ndarray], t: float, x: np.ndarr
     """Advance ``x' = f(t, x)`` from ``t`` to ``t + h`` with ``substeps`` RK4 steps."""
     dt = h / substeps
     for i in range(substeps):
-        s = t + i * dt
+        s, end = t + i * dt, t + (i + 1) * dt   # end: the next sub-step's s, the same float (caches of f(t) hit)
         k1 = f(s, x)
         k2 = f(s + dt / 2, x + dt / 2 * k1)
         k3 = f(s + dt / 2, x + dt / 2 * k2)
-        k4 = f(s + dt, x + dt * k3)
+        k4 = f(end, x + dt * k3)
         x = x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
     return x
