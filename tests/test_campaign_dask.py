@@ -130,7 +130,8 @@ def test_a_killed_worker_process_costs_no_sample(client, build_dir, tmp_path):
             os.kill(pid, signal.SIGKILL)
             killed.append(pid)
 
-    campaign = _ltv(build_dir, {"plant.k[1]": "-4:-2:8"}, stop_time=1.0)
+    # samples long enough (~0.3 s each) that the first row comes while the others run
+    campaign = _ltv(build_dir, {"plant.k[1]": "-4:-2:8"}, stop_time=8.0)
     table = run_campaign(campaign, client=client, out=tmp_path / "killed", on_row=kill_a_busy_worker)
     assert killed, "a worker was busy when the first row arrived"
     rows = table.to_pylist()
