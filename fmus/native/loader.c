@@ -275,11 +275,7 @@ fmi2Status fmi2DoStep(fmi2Component component, fmi2Real currentCommunicationPoin
 {
     ENTER(fmi2DoStep, STEP_COMPLETE)
     double t = currentCommunicationPoint, h = communicationStepSize;
-    if (!finite(h) || h <= 0)
-        return refuse(c, "fmi2DoStep: communicationStepSize %g is not a positive finite number", h);
-    if (!finite(t) || magnitude(t - c->time) > 1e-9 * (magnitude(c->time) > 1 ? magnitude(c->time) : 1))
-        return refuse(c, "fmi2DoStep: currentCommunicationPoint %.17g is not the FMU's current time %.17g",
-                      t, c->time);
+    if (check_step(c, "fmi2DoStep", t, h) != fmi2OK) return fmi2Error;
     fmi2Status status = c->bridge->doStep(c->inner, t, h, noSetFMUStatePriorToCurrentPoint);
     if (status <= fmi2Warning) c->time = t + h;
     else if (status == fmi2Discard) c->state = STEP_FAILED;
@@ -300,11 +296,7 @@ __attribute__((visibility("default"))) fmi2Status obsfmuDoStepBatched(
     ENTER(obsfmuDoStepBatched, STEP_COMPLETE)
     ARRAYS(obsfmuDoStepBatched, vr, nvr, value)
     ARRAYS(obsfmuDoStepBatched, outputVr, nOutputs, output)
-    if (!finite(h) || h <= 0)
-        return refuse(c, "obsfmuDoStepBatched: communicationStepSize %g is not a positive finite number", h);
-    if (!finite(t) || magnitude(t - c->time) > 1e-9 * (magnitude(c->time) > 1 ? magnitude(c->time) : 1))
-        return refuse(c, "obsfmuDoStepBatched: currentCommunicationPoint %.17g is not the FMU's current time %.17g",
-                      t, c->time);
+    if (check_step(c, "obsfmuDoStepBatched", t, h) != fmi2OK) return fmi2Error;
     int stepped = 0;
     fmi2Status status = c->bridge->doStepBatched(c->inner, t, h, vr, nvr, value, slope, outputVr, nOutputs, output,
                                                  &stepped);

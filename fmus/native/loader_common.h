@@ -263,6 +263,16 @@ static void say(const fmi2CallbackFunctions *callbacks, const char *name, fmi2St
 
 #define refuse(core, ...) (say(&(core)->callbacks, (core)->name, fmi2Error, __VA_ARGS__), fmi2Error)
 
+/* fmi2OK when a step of size h may start at t (the instance's time); else fmi2Error, logged as a refusal of `call`. */
+static fmi2Status check_step(Core *c, const char *call, double t, double h)
+{
+    if (!finite(h) || h <= 0)
+        return refuse(c, "%s: communicationStepSize %g is not a positive finite number", call, h);
+    if (!finite(t) || magnitude(t - c->time) > 1e-9 * (magnitude(c->time) > 1 ? magnitude(c->time) : 1))
+        return refuse(c, "%s: currentCommunicationPoint %.17g is not the FMU's current time %.17g", call, t, c->time);
+    return fmi2OK;
+}
+
 /* The status of a call that reached the bridge.  fmi2Error: a call the slave refused (it changed
  * nothing) leaves the instance in its state, a failed one moves it to the version's failure state. */
 static fmi2Status after(Core *c, fmi2Status status)

@@ -647,10 +647,7 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
     double t = currentCommunicationPoint, h = communicationStepSize, now = c->core.time;
     if (!eventHandlingNeeded || !terminateSimulation || !earlyReturn || !lastSuccessfulTime)
         return REFUSE(c, "fmi3DoStep: NULL output argument");
-    if (!finite(h) || h <= 0)
-        return REFUSE(c, "fmi3DoStep: communicationStepSize %g is not a positive finite number", h);
-    if (!finite(t) || magnitude(t - now) > 1e-9 * (magnitude(now) > 1 ? magnitude(now) : 1))
-        return REFUSE(c, "fmi3DoStep: currentCommunicationPoint %.17g is not the FMU's current time %.17g", t, now);
+    if (check_step(&c->core, "fmi3DoStep", t, h) != fmi2OK) return fmi3Error;
     *eventHandlingNeeded = fmi3False;
     *terminateSimulation = fmi3False;
     *earlyReturn = fmi3False;
