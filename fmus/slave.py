@@ -208,8 +208,7 @@ class _BatchPlan:
         covered = {port: sum(i in given for i in range(where.start, where.stop)) for port, where in input_slices.items()}
         self.given = {port: input_slices[port] for port, n in covered.items() if n}     # ports set by the call
         self.held = [port for port, n in covered.items() if not n]                     # ports left as they are
-        self.whole_ports = all(n in (0, where.stop - where.start) for (port, n), where in
-                               zip(covered.items(), input_slices.values()))
+        self.whole_ports = all(covered[port] in (0, where.stop - where.start) for port, where in input_slices.items())
         # positions in the flat outputs; None: all of them in declaration order (nothing to permute)
         self.output_order = None if list(output_positions) == list(range(output_count)) else \
             np.array(output_positions, dtype=np.intp)
