@@ -42,7 +42,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from benchmarks.high_order import chain_config, input_system          # noqa: E402
-from benchmarks.direct_loop import DirectLoop, for_scenario       # noqa: E402
+from benchmarks.direct_loop import DirectLoop                    # noqa: E402
 from benchmarks.errors import ERRORS                             # noqa: E402
 from fmus.builder import build_fmu                                 # noqa: E402
 from fmus.master import Component, Session, System                # noqa: E402
@@ -73,15 +73,6 @@ def cpu(function) -> float:
     start = time.process_time()
     function()
     return time.process_time() - start
-
-
-def interleaved(cases: dict, repeats: int) -> dict[str, float]:
-    """``{name: min CPU}`` of ``cases`` (name -> callable), ``repeats`` rounds over all cases."""
-    best = {name: np.inf for name in cases}
-    for _ in range(repeats):
-        for name, function in cases.items():
-            best[name] = min(best[name], cpu(function))
-    return best
 
 
 # ---------------------------------------------------------------------------- 1. per-step cost
