@@ -200,6 +200,10 @@ class _Instance:
         """Make ``view`` (a slice of the shared output vector) the place ``fmi2GetReal`` writes to."""
         self.output_values = view
         self._output_address = view.ctypes.data
+        vr, outputs, _, values, slopes = self._pointers    # step's arguments after t and h, with and without slopes
+        ahead, behind = (vr, len(self.input_vrs), values), (outputs, len(self.output_vrs), self._output_address)
+        self._batched_arguments = (ahead + (None,) + behind,
+                                   ahead + (slopes if self.can_interpolate else None,) + behind)
 
     def variable(self, name: str):
         try:
@@ -261,10 +265,7 @@ class _Instance:
     def step(self, t: float, h: float, derivatives: bool) -> int:
         """:meth:`set_inputs`, :meth:`do_step` and :meth:`refresh_outputs` in one call of the binary
         (``obsfmuDoStepBatched``, project FMUs only: :attr:`batched`); the FMI status."""
-        vr, outputs, _, values, slopes = self._pointers
-        return self.raw.batched(self.slave.component, t, h, vr, len(self.input_vrs), values,
-                                slopes if derivatives and self.can_interpolate else None,
-                                outputs, len(self.output_vrs), self._output_address)
+        return self.raw.batched(self.slave.component, t, h, *self._batched_arguments[derivatives])
 
     @property
     def batched(self) -> bool:
@@ -394,6 +395,7 @@ def _wire(instances: dict[str, _Instance], connections: list[Connection]) -> Non
             source = offsets[src] + instances[src].outputs.index(out_name)
             wires[dst].append((instances[dst].variable(in_name).valueReference, source, rank[src]))
     for name, inst in instances.items():
+        wires[name].sort()           # by value reference: an obsfmu FMU's declaration order, its fastest step
         inst.input_vrs = [vr for vr, _, _ in wires[name]]
         inst.input_sources = np.array([source for _, source, _ in wires[name]], dtype=int)
         inst.stepped_before = np.array([producer < rank[name] for _, _, producer in wires[name]], dtype=bool)

@@ -75,15 +75,31 @@ class Block:
     #: or state array); the FMU layer refuses steps that would leave it
     magnitude_bound: ClassVar[float] = MAGNITUDE_BOUND
     #: attributes that are not state (see module docstring); merged along the class hierarchy
-    not_state: ClassVar[tuple[str, ...]] = ("input_sizes", "output_sizes", "feedthrough")
+    not_state: ClassVar[tuple[str, ...]] = ("input_sizes", "output_sizes", "feedthrough", "caller_rolls_back")
     #: attributes that may be None: name -> None (plain data) or a method giving a blank object
     state_optional: ClassVar[dict[str, str | None]] = {}
+    #: True when whoever calls ``advance`` puts the state back itself if it raises (the FMU slave
+    #: rolls every refused step back, docs/faults.md); :meth:`atomically` then saves nothing
+    caller_rolls_back: bool = False
 
     def outputs(self, t: float, inputs: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
         raise NotImplementedError
 
     def advance(self, t: float, h: float, inputs: Mapping[str, Segment]) -> None:
         raise NotImplementedError
+
+    def atomically(self, step, *args) -> None:
+        """``step(*args)`` with the state left as it was if it raises: saved before and put back here,
+        unless the caller does that itself (``caller_rolls_back``), which spares a capture per step."""
+        if self.caller_rolls_back:
+            step(*args)
+            return
+        saved = self.get_state()
+        try:
+            step(*args)
+        except Exception:
+            self.set_state(saved, check=False)
+            raise
 
     def get_state(self) -> dict[str, Any]:
         """The complete state as plain data (arrays shared with the block, see module docstring)."""

@@ -78,13 +78,22 @@ static void log_message(Component *c, fmi2Status status, const char *category, c
 static fmi2Status drain_log(Component *c)
 {
     fmi2Status worst = fmi2OK;
-    PyObject *queue = PyObject_GetAttrString(c->instance, "log_queue");
+    static PyObject *name = NULL; /* interned once: this runs after every call */
+    if (name == NULL && (name = PyUnicode_InternFromString("log_queue")) == NULL) {
+        PyErr_Clear();
+        return worst;
+    }
+    PyObject *queue = PyObject_GetAttr(c->instance, name);
     if (queue == NULL || !PyList_Check(queue)) {
         PyErr_Clear();
         Py_XDECREF(queue);
         return worst;
     }
     Py_ssize_t size = PyList_Size(queue);
+    if (size == 0) {
+        Py_DECREF(queue);
+        return worst;
+    }
     for (Py_ssize_t i = 0; i < size; i++) {
         PyObject *item = PyList_GetItem(queue, i); /* borrowed */
         PyObject *status = PyObject_GetAttrString(item, "status");
@@ -686,7 +695,11 @@ static fmi2Status do_step_batched(fmi2Component component, fmi2Real t, fmi2Real 
             Batch *b = &c->batch;
             if (nvr) memcpy(b->buffers[0].buf, value, nvr * sizeof(double));
             if (nvr && slope) memcpy(b->buffers[1].buf, slope, nvr * sizeof(double));
-            PyObject *result = PyObject_CallFunction(b->step, "dd", t, h);
+            PyObject *time = PyFloat_FromDouble(t);
+            PyObject *size = PyFloat_FromDouble(h);
+            PyObject *result = time && size ? PyObject_CallFunctionObjArgs(b->step, time, size, NULL) : NULL;
+            Py_XDECREF(time);
+            Py_XDECREF(size);
             if (result == NULL) {
                 status_ = python_error(c, "obsfmuDoStepBatched");
             } else {

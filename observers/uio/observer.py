@@ -262,12 +262,7 @@ class UIOFiniteTimeObserver(Block):
         segment = inputs["y"]
         y0 = float(finite_signal("input y", segment.start)[0])
         dy = float(finite_signal("input y slope", segment.slope)[0])
-        saved = self.get_state()
-        try:
-            self._step(t, h, y0, dy)
-        except Exception:
-            self.set_state(saved, check=False)
-            raise
+        self.atomically(self._step, t, h, y0, dy)
 
     def _step(self, t: float, h: float, y0: float, dy: float) -> None:
         running = [code == RUNNING for code, _ in self.status()]
