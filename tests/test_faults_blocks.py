@@ -122,6 +122,36 @@ def test_a_captured_state_is_a_rollback_and_fits_a_fresh_block(kind):
             np.testing.assert_array_equal(value, expected_k[name], err_msg=name)
 
 
+class _Halfway(Block):
+    """A block whose step rebinds part of its state and then fails."""
+
+    def __init__(self):
+        self.x, self.count = np.zeros(2), 0
+        self.input_sizes, self.output_sizes = {}, {"x": 2}
+
+    def advance(self, t, h, inputs):
+        self.atomically(self._step)
+
+    def _step(self):
+        self.x, self.count = self.x + 1.0, self.count + 1
+        raise FloatingPointError("not finite")
+
+
+@pytest.mark.parametrize("caller_rolls_back", [False, True])
+def test_atomically_leaves_the_state_as_it_was_unless_the_caller_rolls_back(caller_rolls_back):
+    """Standalone, a block's ``atomically`` step puts the state back itself; under a caller that rolls
+    back every failed step (the FMU slave) it saves nothing, and the caller's saved state is the rollback."""
+    block = _Halfway()
+    block.caller_rolls_back = caller_rolls_back
+    saved = block.get_state()
+    assert "caller_rolls_back" not in saved                  # a setting of the caller, not state
+    with pytest.raises(FloatingPointError):
+        block.advance(0.0, 1.0, {})
+    assert block.count == (1 if caller_rolls_back else 0)
+    block.set_state(saved, check=False)                       # what the caller does
+    assert block.count == 0 and np.array_equal(block.x, np.zeros(2))
+
+
 # --------------------------------------------------------------------------- restore checks
 class _Inner:
     def __init__(self):

@@ -253,3 +253,21 @@ def test_an_fmu_bundles_only_the_runtime_part_of_fmus(ship_fmus):
     assert "fmus/slave.py" in bundled and "fmus/kinds/linear.py" in bundled
     assert all(name.startswith(FMU_RUNTIME) for name in bundled), sorted(bundled)
     assert not {"fmus/master.py", "fmus/cli.py", "fmus/scenarios/__init__.py"} & bundled
+
+
+def test_an_instance_context_ignores_floating_point_errors_and_leaves_the_callers_setting():
+    """The slave runs its entry points in a context of its own where numpy ignores floating-point
+    errors (numpy >= 2 keeps that setting per context); the caller's setting stays as it was."""
+    from fmus import slave
+    old = np.seterr(all="raise")
+    try:
+        context = slave._numerics_context()
+        if np.lib.NumpyVersion(np.__version__) >= "2.0.0":
+            assert context is not None
+        if context is not None:
+            inside = context.run(np.geterr)
+            assert inside == {"divide": "ignore", "over": "ignore", "under": "ignore", "invalid": "ignore"}
+            assert context.run(lambda: float(np.float64(1e308) * 10)) == np.inf     # no FloatingPointError
+        assert np.geterr() == {"divide": "raise", "over": "raise", "under": "raise", "invalid": "raise"}
+    finally:
+        np.seterr(**old)
