@@ -689,11 +689,16 @@ class BlockSlave(Fmi2Slave):
         self._remember_inputs(t, h, ends)
         return True
 
-    def _checked_step(self, t: float, h: float, block: Block, segments: dict | None, ends: dict) -> bool:
+    def _checked_step(self, t: float, h: float, block: Block, segments: dict | None, ends: dict,
+                      plan: _BatchPlan | None = None) -> bool:
         """Advance ``block`` over the input ``segments`` (None: a stateless block) and compute its outputs
         with the inputs at the step end (``ends``: those that moved); keep the result only if the new
         state, the inputs at the end and the outputs are all finite and within the bound, else roll back
-        and refuse (docs/faults.md).  True if the step was taken (the caller then remembers the inputs)."""
+        and refuse (docs/faults.md).  True if the step was taken (the caller then remembers the inputs).
+
+        With ``plan`` (:meth:`step_batched`, every output in declaration order, the inputs at the end
+        bounded by construction) the outputs are written into ``plan.outputs`` and tested there as one
+        vector; the binary copies that vector out only when the step is taken."""
         inputs = self._inputs
         at_end = {**inputs, **ends} if ends else inputs
         before = None if block.stateless else self._snapshot   # the state now, checked (or None)
@@ -707,8 +712,12 @@ class BlockSlave(Fmi2Slave):
                 leaves = Leaves()
                 tree = capture(block, leaves)
             outputs = block.outputs(t + h, at_end)
-            fault = None if self._all_within(leaves, checked, ends, outputs) else \
-                self._fault(tree, leaves, checked, ends, outputs, None)
+            if plan is None:
+                tested = self._all_within(leaves, checked, [*ends.values(), *outputs.values()])
+            else:
+                self._write_outputs(plan, outputs)
+                tested = within(plan.outputs, self._bound) and self._all_within(leaves, checked, [])
+            fault = None if tested else self._fault(tree, leaves, checked, ends, outputs, None)
         except BaseException as exc:            # KeyboardInterrupt too: roll back, then let it through
             if before is not None:
                 block.set_state(before[0], check=False)
@@ -763,8 +772,10 @@ class BlockSlave(Fmi2Slave):
         """
         plan, block, t, h = self._batch, self._block, current_time, step_size
         values, slopes, given = plan.values, plan.slopes, plan.given_data
+        # |value + h slope| <= (1 + h) |(value, slope)|: a common step's inputs at the end are within the bound
         common = plan.derivatives and plan.whole_ports and block is not None and not self._bad \
-            and 0.0 < h < math.inf and math.isfinite(t) and given.dot(given) <= self._bound * self._bound  # not NaN
+            and 0.0 < h < math.inf and math.isfinite(t) and \
+            given.dot(given) * (1.0 + h) ** 2 <= self._bound * self._bound      # False if NaN
         if not common:
             return self._step_by_calls(plan, t, h)
         if self._feedthrough:
@@ -789,7 +800,8 @@ class BlockSlave(Fmi2Slave):
         else:
             for port in plan.held:
                 segments[port] = self._segment(port, t, h)
-        if not self._checked_step(t, h, block, segments, ends):
+        staged = plan if plan.output_order is None else None
+        if not self._checked_step(t, h, block, segments, ends, staged):
             return False
         flat[:] = end           # _remember_inputs: the given inputs followed their slopes to t + h
         remembered, after = {}, t + h
@@ -799,7 +811,8 @@ class BlockSlave(Fmi2Slave):
             else:
                 remembered[port] = (flat[where].copy(), after if self._modes[port][0] == _INTERPOLATE else t)
         self._last_inputs, self._derivatives = remembered, {}
-        self._write_outputs(plan)
+        if staged is None:
+            self._write_outputs(plan, self._outputs_cache)
         return True
 
     def _step_by_calls(self, plan: _BatchPlan, t: float, h: float) -> bool:
@@ -809,17 +822,17 @@ class BlockSlave(Fmi2Slave):
             self.set_real_input_derivatives(plan.input_vrs, [1] * len(plan.input_vrs), plan.slopes.tolist())
         if not self._do_step(t, h):
             return False
-        self._write_outputs(plan)
+        self._write_outputs(plan, self._outputs_cache)
         return True
 
-    def _write_outputs(self, plan: _BatchPlan) -> None:
-        """The plan's outputs after a step into its ``outputs`` vector (a step taken cannot fail here:
+    def _write_outputs(self, plan: _BatchPlan, outputs: dict) -> None:
+        """The plan's ``outputs`` after a step into its ``outputs`` vector (a step taken cannot fail here:
         a wrong-sized block output is logged as the bug it is)."""
         try:
             if plan.output_order is None:                     # all outputs in order: port by port
-                cache, vector = self._outputs_cache, plan.outputs
+                vector = plan.outputs
                 for port, where in self._output_slices.items():
-                    vector[where] = cache[port]
+                    vector[where] = outputs[port]
             else:
                 plan.outputs[:] = self._flat_outputs()[plan.output_order]
         except (ValueError, IndexError, KeyError) as exc:
@@ -839,16 +852,19 @@ class BlockSlave(Fmi2Slave):
             return self._refuse(t, h, f"{kind} {name} = {_verdict(value, self._bound)}")
         return self._do_step(t, h)                # the block was built just now
 
-    def _all_within(self, leaves: Leaves | None, checked: Leaves | None, ends: dict, outputs: dict) -> bool:
-        """One cheap test of everything a step produced -- the state it rebound, the inputs at its
-        end, the outputs, all in one vector: the sum of their squares (inf or NaN if any entry is)
-        within the bound; entry by entry only if not."""
-        arrays = [*ends.values(), *outputs.values()]
+    def _all_within(self, leaves: Leaves | None, checked: Leaves | None, arrays: list) -> bool:
+        """One cheap test of ``arrays`` and the state a step rebound (``leaves`` not in ``checked``), all
+        in one vector: the sum of their squares (inf or NaN if any entry is) within the bound; entry by
+        entry only if not."""
         if leaves is not None:
             arrays += unchanged_skipped(leaves, checked)
             if leaves.floats:
                 arrays.append(leaves.floats)
-        return not arrays or within(np.concatenate(arrays, axis=None), self._bound)   # one vector, one test
+        if not arrays:
+            return True
+        vector = arrays[0] if len(arrays) == 1 and type(arrays[0]) is np.ndarray and arrays[0].ndim == 1 else \
+            np.concatenate(arrays, axis=None)                                   # one vector, one test
+        return within(vector, self._bound)
 
     def _fault(self, tree, leaves, checked, ends, outputs, error) -> str:
         """What :meth:`_all_within` (or ``error``, raised by the step) found wrong, in words."""
