@@ -57,7 +57,7 @@ import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ctypes import PYFUNCTYPE, c_double, c_int, c_size_t, c_void_p
+from ctypes import PYFUNCTYPE, Structure, addressof, c_double, c_int, c_size_t, c_void_p
 
 import numpy as np
 from fmpy import extract, read_model_description
@@ -200,10 +200,10 @@ class _Instance:
         """Make ``view`` (a slice of the shared output vector) the place ``fmi2GetReal`` writes to."""
         self.output_values = view
         self._output_address = view.ctypes.data
-        vr, outputs, _, values, slopes = self._pointers    # step's arguments after t and h, with and without slopes
-        ahead, behind = (vr, len(self.input_vrs), values), (outputs, len(self.output_vrs), self._output_address)
-        self._batched_arguments = (ahead + (None,) + behind,
-                                   ahead + (slopes if self.can_interpolate else None,) + behind)
+        vr, outputs, _, values, slopes = self._pointers    # step's plans, without and with slopes
+        self._plans = tuple(_StepPlan(vr, len(self.input_vrs), values, slope, outputs, len(self.output_vrs),
+                                      self._output_address) for slope in (None, slopes if self.can_interpolate else None))
+        self._plan_addresses = tuple(addressof(plan) for plan in self._plans)
 
     def variable(self, name: str):
         try:
@@ -264,16 +264,22 @@ class _Instance:
 
     def step(self, t: float, h: float, derivatives: bool) -> int:
         """:meth:`set_inputs`, :meth:`do_step` and :meth:`refresh_outputs` in one call of the binary
-        (``obsfmuDoStepBatched``, project FMUs only: :attr:`batched`); the FMI status."""
-        return self.raw.batched(self.slave.component, t, h, *self._batched_arguments[derivatives])
+        (``obsfmuDoStepPlanned``, project FMUs only: :attr:`batched`); the FMI status."""
+        return self.raw.batched(self.slave.component, t, h, self._plan_addresses[derivatives])
 
     @property
     def batched(self) -> bool:
-        """The binary offers ``obsfmuDoStepBatched`` (an obsfmu FMU, fmus/native/loader.c)."""
+        """The binary offers ``obsfmuDoStepPlanned`` (an obsfmu FMU, fmus/native/loader.c)."""
         return self.raw.batched is not None
 
 
 _WARNING = 1  #: worst FMI status that lets a run go on
+
+
+class _StepPlan(Structure):
+    """``ObsfmuStepPlan`` (fmus/native/loader.c): the arrays of one-call steps, built once per run."""
+    _fields_ = [("vr", c_void_p), ("nvr", c_size_t), ("value", c_void_p), ("slope", c_void_p),
+                ("output_vr", c_void_p), ("n_outputs", c_size_t), ("output", c_void_p)]
 
 
 class _RawCalls:
@@ -286,11 +292,10 @@ class _RawCalls:
                                               [pointer, pointer, size, pointer, pointer])
         self.do_step = self._function(dll, "fmi2DoStep", [pointer, c_double, c_double, c_int])
         self.get_real = self._function(dll, "fmi2GetReal", [pointer, pointer, size, pointer])
-        # an obsfmu binary: its one-call step (fmus/native/loader.c), called with the GIL held -- the step runs
-        # Python code (the slave) that would take it back at once
-        prototype = PYFUNCTYPE(c_int, pointer, c_double, c_double, pointer, size, pointer, pointer, pointer, size,
-                               pointer)
-        self.batched = prototype(("obsfmuDoStepBatched", dll)) if hasattr(dll, "obsfmuDoStepBatched") else None
+        # an obsfmu binary: its one-call step with its arrays in a plan (fmus/native/loader.c), called with the
+        # GIL held -- the step runs Python code (the slave) that would take it back at once
+        prototype = PYFUNCTYPE(c_int, pointer, c_double, c_double, pointer)
+        self.batched = prototype(("obsfmuDoStepPlanned", dll)) if hasattr(dll, "obsfmuDoStepPlanned") else None
 
     @staticmethod
     def _function(dll, name, argtypes):
@@ -448,7 +453,7 @@ class _Stepper:
         self.before: np.ndarray | None = None
         self.h_before = 0.0
         self.feedthrough = [inst for inst in self.order if inst.feedthrough]
-        #: instances whose binary steps in one call (set inputs, step, read outputs: obsfmuDoStepBatched)
+        #: instances whose binary steps in one call (set inputs, step, read outputs: obsfmuDoStepPlanned)
         self.batched = {inst for inst in self.order if getattr(inst, "batched", False)}
 
     def settle(self, passes: int) -> None:

@@ -35,15 +35,34 @@ def batched(probe: Probe):
     return function
 
 
-def call_batched(probe: Probe, h: float, names, values, slopes, outputs: np.ndarray) -> int:
-    """One batched step of ``probe`` at its time (``slopes`` None: no derivatives); its status."""
+class StepPlan(ctypes.Structure):
+    """``ObsfmuStepPlan`` of fmus/native/loader.c, declared here independently of the master's."""
+    _fields_ = [("vr", ctypes.c_void_p), ("nvr", ctypes.c_size_t), ("value", ctypes.c_void_p),
+                ("slope", ctypes.c_void_p), ("output_vr", ctypes.c_void_p), ("n_outputs", ctypes.c_size_t),
+                ("output", ctypes.c_void_p)]
+
+
+def planned(probe: Probe):
+    """The binary's ``obsfmuDoStepPlanned``: ``obsfmuDoStepBatched`` with its arrays in a struct."""
+    function = probe.slave.dll.obsfmuDoStepPlanned
+    function.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double, ctypes.POINTER(StepPlan)]
+    function.restype = ctypes.c_int
+    return function
+
+
+def call_batched(probe: Probe, h: float, names, values, slopes, outputs: np.ndarray, form: str = "batched") -> int:
+    """One batched step of ``probe`` at its time (``slopes`` None: no derivatives), by ``obsfmuDoStepBatched``
+    or, ``form="planned"``, ``obsfmuDoStepPlanned``; its status."""
     vr = np.array([probe.vr(n) for n in names], dtype=np.uint32)
     out_vr = np.array([probe.vr(n) for n in probe.names("output")], dtype=np.uint32)
     values = np.ascontiguousarray(values, dtype=float)
     slopes = None if slopes is None else np.ascontiguousarray(slopes, dtype=float)
-    status = batched(probe)(probe.slave.component, probe.t, h, vr.ctypes.data, len(vr), values.ctypes.data,
-                            None if slopes is None else slopes.ctypes.data, out_vr.ctypes.data, len(out_vr),
-                            outputs.ctypes.data)
+    arrays = (vr.ctypes.data, len(vr), values.ctypes.data, None if slopes is None else slopes.ctypes.data,
+              out_vr.ctypes.data, len(out_vr), outputs.ctypes.data)
+    if form == "planned":
+        status = planned(probe)(probe.slave.component, probe.t, h, ctypes.byref(StepPlan(*arrays)))
+    else:
+        status = batched(probe)(probe.slave.component, probe.t, h, *arrays)
     if status in (OK, 1):
         probe.t += h
     return status
@@ -71,7 +90,8 @@ def pairs(kind_fmus):
 
 @pytest.mark.parametrize("kind", KINDS_WITH_INPUTS)
 @pytest.mark.parametrize("variant", ["all inputs", "reversed order", "first input only", "no derivatives"])
-def test_the_batched_step_is_bit_for_bit_the_four_calls(pairs, kind, variant):
+@pytest.mark.parametrize("form", ["batched", "planned"])
+def test_the_batched_step_is_bit_for_bit_the_four_calls(pairs, kind, variant, form):
     step, path = pairs[kind]
     separate, together = Probe(path, "separate"), Probe(path, "together")
     try:
@@ -85,7 +105,7 @@ def test_the_batched_step_is_bit_for_bit_the_four_calls(pairs, kind, variant):
             values, slopes = signal(k, step, len(names))
             slopes = None if variant == "no derivatives" else slopes
             assert separate_calls(separate, step, names, values, slopes) == OK, separate.messages()
-            assert call_batched(together, step, names, values, slopes, outputs) == OK, together.messages()
+            assert call_batched(together, step, names, values, slopes, outputs, form) == OK, together.messages()
             np.testing.assert_array_equal(outputs, separate.outputs())
             np.testing.assert_array_equal(together.outputs(), separate.outputs())
         assert split_state(together.state_bytes()) == split_state(separate.state_bytes())
@@ -117,6 +137,35 @@ def test_a_nan_input_is_discarded_naming_it_and_changes_nothing(observer):
     values[0] = 0.0
     assert call_batched(probe, step, names, values, slopes, outputs) == OK, probe.messages(mark)
     assert np.all(np.isfinite(outputs)) and not np.all(outputs == 7.0)
+
+
+@pytest.mark.parametrize("form", ["batched", "planned"])
+def test_a_step_whose_result_leaves_the_bound_is_discarded_with_outputs_untouched(kind_fmus, form):
+    """Inputs within the bound whose outputs are beyond it (the controller's ``u = -K x_hat + r``): the step
+    is computed, tested, rolled back and refused as by fmi2DoStep, and the caller's output vector is not
+    written."""
+    step, path = kind_fmus["state-feedback"]
+    probe = Probe(path, "beyond")
+    names = probe.names("input")
+    outputs = np.full(len(probe.names("output")), 7.0)
+    before, mark = probe.state_bytes(), len(probe.log)
+    values, slopes = np.full(len(names), 9e99), np.zeros(len(names))
+    assert call_batched(probe, step, names, values, slopes, outputs, form) == DISCARD
+    assert "after the step output u = " in probe.messages(mark), probe.messages(mark)
+    assert np.all(outputs == 7.0)
+    assert split_state(probe.state_bytes())[0] == "stepFailed"     # as after fmi2DoStep's Discard
+    assert probe.restore_bytes(before) == OK
+    values, slopes = signal(0, step, len(names))
+    assert call_batched(probe, step, names, values, slopes, outputs, form) == OK, probe.messages(mark)
+    assert np.all(np.isfinite(outputs)) and not np.all(outputs == 7.0)
+    probe.free()
+
+
+def test_a_null_plan_is_an_error(observer):
+    probe, step = observer
+    mark = len(probe.log)
+    assert planned(probe)(probe.slave.component, probe.t, step, None) == ERROR
+    assert "obsfmuDoStepPlanned: NULL plan" in probe.messages(mark)
 
 
 def test_an_unknown_value_reference_is_an_error_that_changes_nothing(observer):

@@ -305,6 +305,28 @@ __attribute__((visibility("default"))) fmi2Status obsfmuDoStepBatched(
     return after(c, status);
 }
 
+/* The arguments of obsfmuDoStepBatched after t and h, in one struct the caller builds once. */
+typedef struct {
+    const fmi2ValueReference *vr;
+    size_t nvr;
+    const fmi2Real *value;
+    const fmi2Real *slope; /* NULL: no derivatives */
+    const fmi2ValueReference *outputVr;
+    size_t nOutputs;
+    fmi2Real *output;
+} ObsfmuStepPlan;
+
+/* obsfmuDoStepBatched with its arrays in a plan: four arguments instead of ten, which is what a
+ * caller through an FFI pays for per step (Python's ctypes: ~0.05 us per argument). */
+__attribute__((visibility("default"))) fmi2Status obsfmuDoStepPlanned(
+    fmi2Component component, fmi2Real t, fmi2Real h, const ObsfmuStepPlan *plan)
+{
+    ENTER(obsfmuDoStepPlanned, STEP_COMPLETE)
+    if (plan == NULL) return refuse(c, "obsfmuDoStepPlanned: NULL plan");
+    return obsfmuDoStepBatched(component, t, h, plan->vr, plan->nvr, plan->value, plan->slope, plan->outputVr,
+                               plan->nOutputs, plan->output);
+}
+
 fmi2Status fmi2CancelStep(fmi2Component component)
 {
     ENTER(fmi2CancelStep, NO_STATE) /* steps are synchronous: never in stepInProgress */
