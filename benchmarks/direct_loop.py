@@ -116,8 +116,9 @@ class DirectLoop:
             live[offset:offset + size] = outputs[name]
             offset += size
 
-    def run(self, stop_time: float, step: float, start_time: float = 0.0, ramp: int = 0):
-        """Times and rows (every output of every block) at every communication point, ``t0`` included."""
+    def run(self, stop_time: float, step: float, start_time: float = 0.0, ramp: int = 0, after_point=None):
+        """Times and rows (every output of every block) at every communication point, ``t0`` included;
+        ``after_point()`` is called after each step (as the master's ``should_stop``)."""
         live = np.zeros(self.size)
         for _ in range(len(self.nodes) + 1):                      # settle direct feedthrough at t0
             for node in self.nodes:
@@ -143,6 +144,8 @@ class DirectLoop:
             before, h_before, now = now, h, live.copy()
             rows.append(now)
             times.append(t_next)
+            if after_point is not None:
+                after_point()
         return np.array(times), np.array(rows)
 
 
