@@ -781,19 +781,20 @@ class BlockSlave(Fmi2Slave):
         if self._feedthrough:
             self._outputs_cache = None
         flat = self._input_flat
-        if plan.in_order:                                     # every input, in order: whole vectors
-            flat[:] = values
-            start, slope = values.copy(), slopes.copy()       # new vectors: the block may keep views of them
-        else:
-            flat[plan.positions] = values
-            start, slope = flat.copy(), np.zeros(flat.size)
-            slope[plan.positions] = slopes
-        end = slope * h
-        end += start
         derivatives, ends, segments = {}, {}, {}
-        for port, where in plan.given_items:
-            derivatives[port], ends[port] = slope[where], end[where]
-            segments[port] = Segment(start[where], derivatives[port])
+        if plan.given_items:
+            if plan.in_order:                                 # every input, in order: whole vectors
+                flat[:] = values
+                start, slope = values.copy(), slopes.copy()   # new vectors: the block may keep views of them
+            else:
+                flat[plan.positions] = values
+                start, slope = flat.copy(), np.zeros(flat.size)
+                slope[plan.positions] = slopes
+            end = slope * h
+            end += start
+            for port, where in plan.given_items:
+                derivatives[port], ends[port] = slope[where], end[where]
+                segments[port] = Segment(start[where], derivatives[port])
         self._derivatives = derivatives
         if block.stateless:
             segments = None
@@ -803,7 +804,8 @@ class BlockSlave(Fmi2Slave):
         staged = plan if plan.output_order is None else None
         if not self._checked_step(t, h, block, segments, ends, staged):
             return False
-        flat[:] = end           # _remember_inputs: the given inputs followed their slopes to t + h
+        if ends:
+            flat[:] = end       # _remember_inputs: the given inputs followed their slopes to t + h
         remembered, after = {}, t + h
         for port, where in self._input_slices.items():     # in declaration order, as _remember_inputs
             if port in ends:
