@@ -201,8 +201,9 @@ class _Instance:
         self.output_values = view
         self._output_address = view.ctypes.data
         vr, outputs, _, values, slopes = self._pointers    # step's plans, without and with slopes
+        slopes = slopes if self.can_interpolate else None
         self._plans = tuple(_StepPlan(vr, len(self.input_vrs), values, slope, outputs, len(self.output_vrs),
-                                      self._output_address) for slope in (None, slopes if self.can_interpolate else None))
+                                      self._output_address) for slope in (None, slopes))
         self._plan_addresses = tuple(addressof(plan) for plan in self._plans)
 
     def variable(self, name: str):

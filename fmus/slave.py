@@ -228,8 +228,8 @@ class _BatchPlan:
     one call, and the vectors whose memory the binary fills (``values``, ``slopes``) before the call and
     reads (``outputs``) after it; where they go among the FMU's inputs and outputs."""
 
-    __slots__ = ("input_vrs", "output_vrs", "given_data", "values", "slopes", "outputs", "derivatives", "positions", "given",
-                 "given_items", "held", "whole_ports", "in_order", "output_order")
+    __slots__ = ("input_vrs", "output_vrs", "given_data", "values", "slopes", "outputs", "derivatives", "positions",
+                 "given", "given_items", "held", "whole_ports", "in_order", "output_order")
 
     def __init__(self, input_vrs, derivatives, output_vrs, positions: list[int], input_slices: dict[str, slice],
                  output_positions: list[int], output_count: int):
@@ -828,8 +828,9 @@ class BlockSlave(Fmi2Slave):
         return True
 
     def _write_outputs(self, plan: _BatchPlan, outputs: dict) -> None:
-        """The plan's ``outputs`` after a step into its ``outputs`` vector (a step taken cannot fail here:
-        a wrong-sized block output is logged as the bug it is)."""
+        """The block's ``outputs`` after a step into the plan's ``outputs`` vector (in the checked step, before
+        its test, for a batched step: the binary copies the vector out only for a step taken).  This cannot
+        fail a step: a wrong-sized block output is logged as the bug it is."""
         try:
             if plan.output_order is None:                     # all outputs in order: port by port
                 vector = plan.outputs
