@@ -46,6 +46,8 @@ _CONTAINERS = (list, tuple, deque)
 #: float and complex dtypes: the arrays whose entries are checked against the bound
 _NUMBER_DTYPES = frozenset(dtype for dtype in DTYPES if dtype.kind in "fc")
 _IMMUTABLE, _FLOAT, _STR = frozenset((type(None), int, float, str)), frozenset((float,)), frozenset((str,))
+#: items of a container kept as they are, with nothing to check (no float: the bound applies to those)
+_PASSED = frozenset((type(None), bool, int, str))
 #: deepest nesting a tree may have
 MAX_DEPTH = 48
 
@@ -66,10 +68,15 @@ def _declared(cls: type, attribute: str) -> dict | tuple:
             for klass in reversed(cls.__mro__):
                 cached.update(vars(klass).get(attribute, {}))
         _DECLARED[key] = cached
+        if attribute == "not_state":
+            _NOT_STATE[cls] = cached
     return cached
 
 
 _DECLARED: dict[tuple[type, str], Any] = {}
+#: ``not_state`` by class (the lookup of every captured object) and the classes found to be objects
+_NOT_STATE: dict[type, frozenset] = {}
+_OBJECTS: set[type] = set()
 
 
 def _is_object(value) -> bool:
@@ -91,7 +98,9 @@ class Leaves:
 def capture(obj, leaves: Leaves | None = None) -> dict:
     """The state of ``obj`` as a tree (arrays shared, containers copied); :class:`StateError`
     names an attribute whose value cannot be kept in a state.  ``leaves`` collects its numbers."""
-    skip = _declared(type(obj), "not_state")
+    skip = _NOT_STATE.get(type(obj))
+    if skip is None:
+        skip = _declared(type(obj), "not_state")
     tree = {}
     for name, value in vars(obj).items():
         if name in skip:
@@ -105,6 +114,11 @@ def capture(obj, leaves: Leaves | None = None) -> dict:
             if leaves is not None:
                 leaves.floats.append(value)
             tree[name] = value
+        elif kind in _OBJECTS:                                       # an object met before (an estimator)
+            try:
+                tree[name] = capture(value, leaves)
+            except StateError as exc:
+                raise StateError(f"{type(obj).__name__}.{name}: {exc}") from None
         else:
             try:
                 tree[name] = _capture(value, leaves)
@@ -133,7 +147,7 @@ def _capture(value, leaves):
             if leaves is not None and float in kinds:
                 leaves.floats.extend(value if kinds == _FLOAT else [item for item in value if type(item) is float])
             return value
-        return tuple(_capture(item, leaves) for item in value)
+        return tuple([item if type(item) in _PASSED else _capture(item, leaves) for item in value])
     if kind is list or kind is deque:
         return [_capture(item, leaves) for item in value]
     if kind is dict:
@@ -143,6 +157,7 @@ def _capture(value, leaves):
     if isinstance(value, np.generic) and value.dtype in DTYPES:
         return _capture(value.item(), leaves)
     if _is_object(value):
+        _OBJECTS.add(kind)
         return capture(value, leaves)
     raise StateError(f"a {kind.__name__} is not state data; declare the attribute in not_state of its class")
 
