@@ -3,7 +3,7 @@
 One function per continuous scenario (``ERRORS[name](result) -> float``), shared by
 ``benchmarks/issue14.py`` and ``benchmarks/master_study.py``.  Results whose communication points
 miss the reference's grid (the adaptive master's) are read there through a cubic spline of the
-run -- fourth order, unlike linear interpolation, which would measure itself rather than the run.
+run (:meth:`fmus.result.Result.at`).
 """
 
 from __future__ import annotations
@@ -16,13 +16,6 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 
 __all__ = ["ERRORS"]
-
-
-def _on_grid(result, columns, times):
-    """``columns`` of ``result`` at ``times`` (cubic spline through the communication points)."""
-    from scipy.interpolate import CubicSpline
-    values = np.column_stack([result[c] for c in columns])
-    return CubicSpline(result.time, values)(times)
 
 
 def _ship_error(result):
@@ -52,8 +45,7 @@ def _ltv_error(case):
     def error(result):
         times, theta_hat = _ltv_reference(case)
         keep = times <= result.time[-1] + 1e-9
-        columns = [f"observer.theta_hat[{j}]" for j in range(1, 9)]
-        return float(np.abs(_on_grid(result, columns, times[keep]) - theta_hat[keep]).max())
+        return float(np.abs(result.at(times[keep], "observer.theta_hat") - theta_hat[keep]).max())
     return error
 
 

@@ -78,6 +78,18 @@ class Result:
         """Index of the communication point nearest to ``t``."""
         return int(np.argmin(np.abs(self.time - t)))
 
+    def at(self, times, prefix: str) -> np.ndarray:
+        """The columns of ``prefix`` (as :meth:`vector`) at ``times`` within the run, through a cubic spline
+        of the communication points.  Fourth order: a run on another grid than a reference (the adaptive
+        master's) is compared with it at the reference's points without the reading's own error
+        (linear interpolation, second order, would measure itself rather than the run)."""
+        times = np.asarray(times, dtype=float)
+        if times.size and (times.min() < self.time[0] - 1e-9 or times.max() > self.time[-1] + 1e-9):
+            raise ValueError(f"times: {times.min():g} to {times.max():g} leave the run "
+                             f"({self.time[0]:g} to {self.time[-1]:g})")
+        from scipy.interpolate import CubicSpline
+        return CubicSpline(self.time, self.vector(prefix))(times)
+
     def sampled(self, interval: float) -> "Result":
         """The rows nearest to ``t0, t0 + interval, ...`` and the last one (for smaller files)."""
         targets = np.append(np.arange(self.time[0], self.time[-1], interval), self.time[-1])
