@@ -226,6 +226,10 @@ def _plan_value(owner, name, live, data, path, plan, check, depth, optional):
             raise StateError(f"{path}: expected {_kind(live)}, got {_kind(data)}")
         items = [_plan_value(owner, name, old, new, f"{path}[{i}]", plan, check, depth + 1, False)
                  for i, (old, new) in enumerate(zip(live, data))]
+        extra = data[len(live):]                       # a rollback after a step that shortened the container
+        if not all(map(is_plain, extra)):
+            raise StateError(f"{path}: {len(data)} items to restore into {_kind(live)}: the missing ones are objects")
+        items += [_copy_containers(item) for item in extra]
         if type(live) is deque:
             return deque(items, maxlen=live.maxlen)
         return tuple(items) if type(live) is tuple else items

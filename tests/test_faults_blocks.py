@@ -152,6 +152,30 @@ def test_atomically_leaves_the_state_as_it_was_unless_the_caller_rolls_back(call
     assert block.count == 0 and np.array_equal(block.x, np.zeros(2))
 
 
+class _Shrinking(Block):
+    """A block whose step shortens a list in place (allowed: containers are copied both ways)."""
+
+    def __init__(self):
+        self.history = [1.0, 2.0, 3.0]
+        self.pairs = [(0.0, np.zeros(2))]
+        self.input_sizes, self.output_sizes = {}, {}
+
+    def advance(self, t, h, inputs):
+        self.history.pop()
+        self.pairs.clear()
+        raise FloatingPointError("not finite")
+
+
+def test_a_rollback_restores_items_a_failed_step_removed_from_a_container():
+    block = _Shrinking()
+    saved = block.get_state()
+    with pytest.raises(FloatingPointError):
+        block.advance(0.0, 1.0, {})
+    block.set_state(saved, check=False)                       # the slave's rollback
+    assert block.history == [1.0, 2.0, 3.0]
+    assert len(block.pairs) == 1 and block.pairs[0][0] == 0.0 and np.array_equal(block.pairs[0][1], np.zeros(2))
+
+
 # --------------------------------------------------------------------------- restore checks
 class _Inner:
     def __init__(self):
