@@ -149,8 +149,8 @@ def test_a_step_whose_result_leaves_the_bound_is_discarded_with_outputs_untouche
     names = probe.names("input")
     outputs = np.full(len(probe.names("output")), 7.0)
     before, mark = probe.state_bytes(), len(probe.log)
-    values, slopes = np.full(len(names), 9e99), np.zeros(len(names))
-    assert call_batched(probe, step, names, values, slopes, outputs, form) == DISCARD
+    values, slopes = np.full(len(names), 2e99), np.zeros(len(names))   # |(values, slopes)| < 1e100: the
+    assert call_batched(probe, step, names, values, slopes, outputs, form) == DISCARD   # whole-vector path
     assert "after the step output u = " in probe.messages(mark), probe.messages(mark)
     assert np.all(outputs == 7.0)
     assert split_state(probe.state_bytes())[0] == "stepFailed"     # as after fmi2DoStep's Discard
