@@ -266,12 +266,12 @@ class _Instance:
     def step(self, t: float, h: float, derivatives: bool) -> int:
         """:meth:`set_inputs`, :meth:`do_step` and :meth:`refresh_outputs` in one call of the binary
         (``obsfmuDoStepPlanned``, project FMUs only: :attr:`batched`); the FMI status."""
-        return self.raw.batched(self.slave.component, t, h, self._plan_addresses[derivatives])
+        return self.raw.step_planned(self.slave.component, t, h, self._plan_addresses[derivatives])
 
     @property
     def batched(self) -> bool:
         """The binary offers ``obsfmuDoStepPlanned`` (an obsfmu FMU, fmus/native/loader.c)."""
-        return self.raw.batched is not None
+        return self.raw.step_planned is not None
 
 
 _WARNING = 1  #: worst FMI status that lets a run go on
@@ -296,7 +296,7 @@ class _RawCalls:
         # an obsfmu binary: its one-call step with its arrays in a plan (fmus/native/loader.c), called with the
         # GIL held -- the step runs Python code (the slave) that would take it back at once
         prototype = PYFUNCTYPE(c_int, pointer, c_double, c_double, pointer)
-        self.batched = prototype(("obsfmuDoStepPlanned", dll)) if hasattr(dll, "obsfmuDoStepPlanned") else None
+        self.step_planned = prototype(("obsfmuDoStepPlanned", dll)) if hasattr(dll, "obsfmuDoStepPlanned") else None
 
     @staticmethod
     def _function(dll, name, argtypes):
