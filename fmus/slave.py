@@ -71,7 +71,7 @@ from pythonfmu.default_experiment import DefaultExperiment
 
 from observers.block import MAGNITUDE_BOUND, Block, Segment
 from observers.checks import ParameterError
-from observers.state import Leaves, StateError, capture, out_of_bounds, unchanged_skipped, within, within_bound
+from observers.state import Leaves, StateError, capture, out_of_bounds, within, within_bound
 
 from .definition import FmuDefinition, element_unit
 from .kinds import create_block
@@ -713,10 +713,10 @@ class BlockSlave(Fmi2Slave):
                 tree = capture(block, leaves)
             outputs = block.outputs(t + h, at_end)
             if plan is None:
-                tested = self._all_within(leaves, checked, [*ends.values(), *outputs.values()])
+                tested = within_bound(leaves, self._bound, checked, [*ends.values(), *outputs.values()])
             else:
                 self._write_outputs(plan, outputs)
-                tested = within(plan.outputs, self._bound) and self._all_within(leaves, checked, [])
+                tested = within(plan.outputs, self._bound) and within_bound(leaves, self._bound, checked)
             fault = None if tested else self._fault(tree, leaves, checked, ends, outputs, None)
         except BaseException as exc:            # KeyboardInterrupt too: roll back, then let it through
             if before is not None:
@@ -855,22 +855,8 @@ class BlockSlave(Fmi2Slave):
             return self._refuse(t, h, f"{kind} {name} = {_verdict(value, self._bound)}")
         return self._do_step(t, h)                # the block was built just now
 
-    def _all_within(self, leaves: Leaves | None, checked: Leaves | None, arrays: list) -> bool:
-        """One cheap test of ``arrays`` and the state a step rebound (``leaves`` not in ``checked``), all
-        in one vector: the sum of their squares (inf or NaN if any entry is) within the bound; entry by
-        entry only if not."""
-        if leaves is not None:
-            arrays += unchanged_skipped(leaves, checked)
-            if leaves.floats:
-                arrays.append(leaves.floats)
-        if not arrays:
-            return True
-        vector = arrays[0] if len(arrays) == 1 and type(arrays[0]) is np.ndarray and arrays[0].ndim == 1 else \
-            np.concatenate(arrays, axis=None)                                   # one vector, one test
-        return within(vector, self._bound)
-
     def _fault(self, tree, leaves, checked, ends, outputs, error) -> str:
-        """What :meth:`_all_within` (or ``error``, raised by the step) found wrong, in words."""
+        """What the test of :meth:`_checked_step` (or ``error``, raised by the step) found wrong, in words."""
         for port, end in ends.items():
             if not within(end, self._bound):
                 return f"input {port} at the step end (value + h * derivative) = {_verdict(end, self._bound)}"

@@ -317,13 +317,21 @@ def unchanged_skipped(leaves: Leaves, previous: Leaves | None) -> list[np.ndarra
     return list(arrays)
 
 
-def within_bound(leaves: Leaves, bound: float, previous: Leaves | None = None) -> bool:
-    """:func:`within` for every number of ``leaves``, skipping arrays that ``previous`` (the
-    leaves of an earlier, checked capture) holds too: by the sharing rule they did not change."""
-    arrays = unchanged_skipped(leaves, previous)
-    if leaves.floats:
-        arrays = arrays + [np.array(leaves.floats)]
-    return not arrays or within(np.concatenate(arrays, axis=None), bound)
+def within_bound(leaves: Leaves | None, bound: float, previous: Leaves | None = None, arrays=()) -> bool:
+    """:func:`within` for ``arrays`` and every number of ``leaves`` (None: none), skipping arrays that
+    ``previous`` (the leaves of an earlier, checked capture) holds too -- by the sharing rule they did
+    not change -- all in one vector (one 1-D array alone as it is): one test."""
+    arrays = list(arrays)
+    if leaves is not None:
+        arrays += unchanged_skipped(leaves, previous)
+        if leaves.floats:
+            arrays.append(leaves.floats)
+    if not arrays:
+        return True
+    one = arrays[0]
+    vector = one if len(arrays) == 1 and type(one) is np.ndarray and one.ndim == 1 else \
+        np.concatenate(arrays, axis=None)
+    return within(vector, bound)
 
 
 def out_of_bounds(tree, bound: float, path: str = "") -> tuple[str, Any] | None:
