@@ -645,14 +645,17 @@ class BlockSlave(Fmi2Slave):
     def _remember_inputs(self, time: float, step: float = 0.0, ends: dict[str, np.ndarray] | None = None):
         """Record each input with the time it belongs to, after a step of length ``step``.
 
-        An input with a derivative for the step followed it to ``time + step``;
-        an interpolated input was set as its value at ``time + step``.
+        An input with a derivative for the step followed it to ``time + step`` (its value there,
+        ``ends[port]``, a new array nobody writes into, is kept as it is); an interpolated input was
+        set as its value at ``time + step``.
         """
         for port, value in self._inputs.items():
             if ends and port in ends:
-                value[:] = ends[port]
+                value[:] = kept = ends[port]
+            else:
+                kept = value.copy()
             at_end = port in self._derivatives or self._modes[port][0] == _INTERPOLATE
-            self._last_inputs[port] = (value.copy(), time + step if at_end else time)
+            self._last_inputs[port] = (kept, time + step if at_end else time)
         self._derivatives.clear()
         if self._bad:
             self._bad = {name: value for name, value in self._bad.items() if not name.startswith("der(")}
@@ -804,15 +807,7 @@ class BlockSlave(Fmi2Slave):
         staged = plan if plan.output_order is None else None
         if not self._checked_step(t, h, block, segments, ends, staged):
             return False
-        if ends:
-            flat[:] = end       # _remember_inputs: the given inputs followed their slopes to t + h
-        remembered, after = {}, t + h
-        for port, where in self._input_slices.items():     # in declaration order, as _remember_inputs
-            if port in ends:
-                remembered[port] = (ends[port], after)       # a view of end: never written
-            else:
-                remembered[port] = (flat[where].copy(), after if self._modes[port][0] == _INTERPOLATE else t)
-        self._last_inputs, self._derivatives = remembered, {}
+        self._remember_inputs(t, h, ends)                   # ends: views of end, never written
         if staged is None:
             self._write_outputs(plan, self._outputs_cache)
         return True
