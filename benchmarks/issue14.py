@@ -71,12 +71,6 @@ def child_cpu(command: list[str], **kwargs) -> tuple[float, str]:
     return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime), done.stdout
 
 
-def cpu(function) -> float:
-    start = time.process_time()
-    function()
-    return time.process_time() - start
-
-
 # ---------------------------------------------------------------------------- 1. per-step cost
 class InProcessSlaves:
     """The FMUs' slave objects in this process, driven with the calls the C bridge makes.
