@@ -229,7 +229,7 @@ class _BatchPlan:
     reads (``outputs``) after it; where they go among the FMU's inputs and outputs."""
 
     __slots__ = ("input_vrs", "output_vrs", "given_data", "values", "slopes", "outputs", "derivatives", "positions",
-                 "given", "given_items", "held", "whole_ports", "in_order", "output_order")
+                 "given", "held", "whole_ports", "in_order", "output_order")
 
     def __init__(self, input_vrs, derivatives, output_vrs, positions: list[int], input_slices: dict[str, slice],
                  output_positions: list[int], output_count: int):
@@ -240,8 +240,7 @@ class _BatchPlan:
         self.positions = np.array(positions, dtype=np.intp)      # each value's place in the flat inputs
         given = set(positions)
         covered = {port: sum(i in given for i in range(where.start, where.stop)) for port, where in input_slices.items()}
-        self.given = {port: input_slices[port] for port, n in covered.items() if n}     # ports set by the call
-        self.given_items = tuple(self.given.items())
+        self.given = tuple((port, input_slices[port]) for port, n in covered.items() if n)   # ports set by the call
         self.held = [port for port, n in covered.items() if not n]                     # ports left as they are
         self.whole_ports = all(covered[port] in (0, where.stop - where.start) for port, where in input_slices.items())
         size = sum(where.stop - where.start for where in input_slices.values())
@@ -774,18 +773,18 @@ class BlockSlave(Fmi2Slave):
         nothing changed but the inputs; an exception: no step was taken.
         """
         plan, block, t, h = self._batch, self._block, current_time, step_size
-        values, slopes, given = plan.values, plan.slopes, plan.given_data
+        values, slopes, data = plan.values, plan.slopes, plan.given_data
         # |value + h slope| <= (1 + h) |(value, slope)|: a common step's inputs at the end are within the bound
         common = plan.derivatives and plan.whole_ports and block is not None and not self._bad \
             and 0.0 < h < math.inf and math.isfinite(t) and \
-            given.dot(given) * (1.0 + h) ** 2 <= self._bound * self._bound      # False if NaN
+            data.dot(data) * (1.0 + h) ** 2 <= self._bound * self._bound      # False if NaN
         if not common:
             return self._step_by_calls(plan, t, h)
         if self._feedthrough:
             self._outputs_cache = None
         flat = self._input_flat
         derivatives, ends, segments = {}, {}, {}
-        if plan.given_items:
+        if plan.given:
             if plan.in_order:                                 # every input, in order: whole vectors
                 flat[:] = values
                 start, slope = values.copy(), slopes.copy()   # new vectors: the block may keep views of them
@@ -795,7 +794,7 @@ class BlockSlave(Fmi2Slave):
                 slope[plan.positions] = slopes
             end = slope * h
             end += start
-            for port, where in plan.given_items:
+            for port, where in plan.given:
                 derivatives[port], ends[port] = slope[where], end[where]
                 segments[port] = Segment(start[where], derivatives[port])
         self._derivatives = derivatives
