@@ -706,13 +706,13 @@ class BlockSlave(Fmi2Slave):
         before = None if block.stateless else self._snapshot   # the state now, checked (or None)
         checked = None if before is None else before[1]
         if before is None and not block.stateless:
-            before = (capture(block), None)
+            before = (capture(block, rollback=True), None)
         tree = leaves = outputs = None
         try:
             if before is not None:
                 block.advance(t, h, segments)
                 leaves = Leaves()
-                tree = capture(block, leaves)
+                tree = capture(block, leaves, rollback=True)
             outputs = block.outputs(t + h, at_end)
             if plan is None:
                 tested = within_bound(leaves, self._bound, checked, [*ends.values(), *outputs.values()])
@@ -883,12 +883,7 @@ class BlockSlave(Fmi2Slave):
         whether initialization is over, and ``loader``: the native binary's own fields (its FMI
         version and state machine state, ``{"fmi": 2, "state": "stepComplete"}``), kept in the state
         and its bytes for the binary (:meth:`loader_fields`); None without the binary."""
-        block = None
-        if self._block is not None:
-            if self._snapshot is None:
-                leaves = Leaves()
-                self._snapshot = (capture(self._block, leaves), leaves)
-            block = self._snapshot[0]
+        block = None if self._block is None else capture(self._block)
         return FmuState(self.identity, {
             "time": self._time,
             "params": {name: value.copy() for name, value in self._params.items()},
@@ -940,7 +935,7 @@ class BlockSlave(Fmi2Slave):
         same = live is not None and all(np.array_equal(tree["params"][name], value)
                                         for name, value in self._params.items())
         if same:
-            block, rollback = live, (self._snapshot[0] if self._snapshot else capture(live))
+            block, rollback = live, (self._snapshot[0] if self._snapshot else capture(live, rollback=True))
         else:
             try:
                 block, rollback = self._new_block(tree["params"]), None
@@ -950,8 +945,9 @@ class BlockSlave(Fmi2Slave):
         block.set_state(tree["block"])                         # checked: raises before any change
         try:
             leaves, bound = Leaves(), block.magnitude_bound
-            snapshot = (capture(block, leaves), leaves)
-            fault = self._state_fault(*snapshot, None, bound)
+            snapshot = (capture(block, leaves, rollback=True), leaves)
+            found = out_of_bounds(tree["block"], bound)        # every number restored (immutable objects' too)
+            fault = found and f"state {found[0]} = {_verdict(found[1], bound)}"
             outputs = None                 # inputs that are not usable: the next step refuses, naming them
             if all(within(value, bound) for value in tree["inputs"].values()):
                 outputs = block.outputs(tree["time"], tree["inputs"])

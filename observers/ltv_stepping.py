@@ -37,6 +37,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from .block import MAGNITUDE_BOUND
 from .checks import ParameterError, SignalError
 
 __all__ = ["time_function", "output_function", "InputPolynomial", "PolynomialInputs", "rk4_linear",
@@ -111,8 +112,12 @@ class PolynomialInputs:
     the producer's output at ``t + h``).  A segment that does not continue the previous one (hold,
     extrapolation, the first step) is used as it is and restarts the history.  Immutable: a
     block's state holds one, and :meth:`step` returns the inputs over a step together with the
-    history after it, which the block rebinds once its step has succeeded.
+    history after it, which the block rebinds once its step has succeeded.  Its samples are
+    checked as they come (finite, within ``MAGNITUDE_BOUND``), so a rollback point shares it
+    (``immutable``, :mod:`observers.state`).
     """
+
+    immutable = True
 
     def __init__(self, degree: int = 2, samples: dict | None = None):
         if int(degree) != degree or not 1 <= degree <= 5:
@@ -129,14 +134,16 @@ class PolynomialInputs:
 
     def step(self, t: float, h: float, segments) -> tuple[dict[str, InputPolynomial], "PolynomialInputs"]:
         """The inputs over ``[t, t + h]`` and the history after the step (this object is unchanged);
-        :class:`~observers.checks.SignalError` on NaN/inf."""
+        :class:`~observers.checks.SignalError` on NaN/inf or beyond ``MAGNITUDE_BOUND``."""
         polynomials, samples = {}, dict(self.samples)
         for name, segment in segments.items():
             start, slope = float(segment.start[0]), float(segment.slope[0])
-            if not (math.isfinite(start) and math.isfinite(slope)):
-                raise SignalError(f"input {name}: not finite ({start}, slope {slope})")
-            times, values = self._continued(name, t, start)
             end = start + h * slope
+            if not (abs(start) <= MAGNITUDE_BOUND and abs(end) <= MAGNITUDE_BOUND and math.isfinite(slope)
+                    and math.isfinite(t + h)):
+                raise SignalError(f"input {name}: not finite or beyond {MAGNITUDE_BOUND:g} "
+                                  f"({start}, slope {slope}, at t = {t} over h = {h})")
+            times, values = self._continued(name, t, start)
             times, values = times[-self.degree:], values[-self.degree:]
             if len(times) == 1:
                 polynomials[name] = InputPolynomial((start, slope), h)
@@ -202,8 +209,11 @@ class IntegralSamples:
 
     Immutable, with the fixed layout of :class:`PolynomialInputs`' samples ``(count, times,
     values)`` (zeros in front), so that an FMU state restores into any history.  Only differences
-    of ``I`` matter (a polynomial reproduces constants): a restarted history starts at 0.
+    of ``I`` matter (a polynomial reproduces constants): a restarted history starts at 0.  Its
+    samples are checked as they come, as :class:`PolynomialInputs`' are.
     """
+
+    immutable = True
 
     def __init__(self, degree: int, samples: tuple | None = None):
         self.samples = samples or (0, (0.0,) * (degree + 1), (0.0,) * (degree + 1))
@@ -226,6 +236,9 @@ class IntegralSamples:
         times, values = list(times[size - count:]), list(values[size - count:])
         if not (times and abs(times[-1] - t) <= 1e-9 * max(1.0, abs(t))):
             times, values = [t], [0.0]
+        if not (abs(values[-1] + change) <= MAGNITUDE_BOUND and math.isfinite(t + h)):
+            raise SignalError(f"int f(y) over the step to t = {t + h}: {values[-1] + change} is not finite "
+                              f"or beyond {MAGNITUDE_BOUND:g}")
         times, values = (times + [t + h])[-size:], (values + [values[-1] + change])[-size:]
         padding = (0.0,) * (size - len(times))
         return IntegralSamples(size - 1, (len(times), padding + tuple(times), padding + tuple(values)))

@@ -27,10 +27,20 @@ Sharing rule (``TEAM.md``): ``advance`` computes the new state completely and th
 the attributes; it never writes into a state array.  A captured tree therefore shares the
 block's arrays without copying them, and restoring it is a complete rollback.  Containers
 (``list``, ``dict``, ``deque``) are copied both ways, since blocks append to them.
+
+Immutable objects: a class whose instances never change once built (its methods return new
+ones, as :class:`~observers.ltv_stepping.PolynomialInputs` does) and that checks the numbers it
+is built from -- finite and within :data:`~observers.block.MAGNITUDE_BOUND`, else
+:class:`~observers.checks.SignalError` -- declares ``immutable = True``.  A *rollback point*
+(``capture(block, rollback=True)``, the FMU layer's point to return to after a refused step)
+then keeps such an object as it is instead of walking it, and its numbers are not collected
+for the bound test: they were checked when it was built.  The plain tree of an FMU state
+still holds them as data.
 """
 
 from __future__ import annotations
 
+import copy
 from collections import deque
 from typing import Any
 
@@ -77,6 +87,8 @@ _DECLARED: dict[tuple[type, str], Any] = {}
 #: ``not_state`` by class (the lookup of every captured object) and the classes found to be objects
 _NOT_STATE: dict[type, frozenset] = {}
 _OBJECTS: set[type] = set()
+#: the classes found to declare ``immutable = True``
+_IMMUTABLE_OBJECTS: set[type] = set()
 
 
 def _is_object(value) -> bool:
@@ -95,9 +107,13 @@ class Leaves:
         self.floats: list[float] = []
 
 
-def capture(obj, leaves: Leaves | None = None) -> dict:
+def capture(obj, leaves: Leaves | None = None, rollback: bool = False) -> dict:
     """The state of ``obj`` as a tree (arrays shared, containers copied); :class:`StateError`
-    names an attribute whose value cannot be kept in a state.  ``leaves`` collects its numbers."""
+    names an attribute whose value cannot be kept in a state.  ``leaves`` collects its numbers.
+
+    ``rollback``: a rollback point of this very block, for :func:`restore` with ``check=False``
+    only -- immutable objects (module docstring) are kept as they are and their numbers not
+    collected."""
     skip = _NOT_STATE.get(type(obj))
     if skip is None:
         skip = _declared(type(obj), "not_state")
@@ -114,20 +130,22 @@ def capture(obj, leaves: Leaves | None = None) -> dict:
             if leaves is not None:
                 leaves.floats.append(value)
             tree[name] = value
+        elif rollback and kind in _IMMUTABLE_OBJECTS:                # checked when built, never changed
+            tree[name] = value
         elif kind in _OBJECTS:                                       # an object met before (an estimator)
             try:
-                tree[name] = capture(value, leaves)
+                tree[name] = capture(value, leaves, rollback)
             except StateError as exc:
                 raise StateError(f"{type(obj).__name__}.{name}: {exc}") from None
         else:
             try:
-                tree[name] = _capture(value, leaves)
+                tree[name] = _capture(value, leaves, rollback)
             except StateError as exc:
                 raise StateError(f"{type(obj).__name__}.{name}: {exc}") from None
     return tree
 
 
-def _capture(value, leaves):
+def _capture(value, leaves, rollback=False):
     kind = type(value)
     if kind is np.ndarray:
         if value.dtype not in DTYPES:
@@ -147,18 +165,23 @@ def _capture(value, leaves):
             if leaves is not None and float in kinds:
                 leaves.floats.extend(value if kinds == _FLOAT else [item for item in value if type(item) is float])
             return value
-        return tuple([item if type(item) in _PASSED else _capture(item, leaves) for item in value])
+        return tuple([item if type(item) in _PASSED else _capture(item, leaves, rollback) for item in value])
     if kind is list or kind is deque:
-        return [_capture(item, leaves) for item in value]
+        return [_capture(item, leaves, rollback) for item in value]
     if kind is dict:
         if not set(map(type, value)) <= _STR:
             raise StateError("dictionary keys must be strings")
-        return {key: _capture(item, leaves) for key, item in value.items()}
+        return {key: _capture(item, leaves, rollback) for key, item in value.items()}
     if isinstance(value, np.generic) and value.dtype in DTYPES:
         return _capture(value.item(), leaves)
     if _is_object(value):
-        _OBJECTS.add(kind)
-        return capture(value, leaves)
+        if getattr(kind, "immutable", False) is True:
+            _IMMUTABLE_OBJECTS.add(kind)
+            if rollback:
+                return value
+        else:
+            _OBJECTS.add(kind)
+        return capture(value, leaves, rollback)
     raise StateError(f"a {kind.__name__} is not state data; declare the attribute in not_state of its class")
 
 
@@ -199,6 +222,8 @@ def _plan_object(obj, tree, path: str, plan: list, check: bool, depth: int) -> N
 def _plan_value(owner, name, live, data, path, plan, check, depth, optional):
     if depth > MAX_DEPTH:
         raise StateError(f"{path}: nested deeper than {MAX_DEPTH}")
+    if not check and type(data) in _IMMUTABLE_OBJECTS:     # kept as it is by a rollback point
+        return data
     if data is None or live is None:
         if data is None and live is None:
             return None
@@ -215,6 +240,8 @@ def _plan_value(owner, name, live, data, path, plan, check, depth, optional):
             raise StateError(f"{path}: expected plain data, got {_kind(data)}")
         return _copy_containers(data)
     if _is_object(live):
+        if type(live) in _IMMUTABLE_OBJECTS:           # never written into: a new one (trees may share it)
+            live = copy.copy(live)
         _plan_object(live, data, path, plan, check, depth)
         return live
     if type(live) is np.ndarray:

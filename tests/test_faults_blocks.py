@@ -20,8 +20,9 @@ from fmus.kinds import create_block
 from fmus.scenarios import SCENARIOS
 from observers.block import Block, Segment
 from observers.integrators import BudgetError, require_budget, substep_count
-from observers.checks import ParameterError
-from observers.state import StateError, capture, restore
+from observers.checks import ParameterError, SignalError
+from observers.ltv_stepping import IntegralSamples, PolynomialInputs
+from observers.state import Leaves, StateError, capture, restore
 
 
 def definitions() -> dict[str, tuple[float, object]]:
@@ -104,6 +105,11 @@ def test_a_captured_state_is_a_rollback_and_fits_a_fresh_block(kind):
     for k in range(5):
         block.advance(k * h, h, inputs(block, k, h))
     saved, expected = block.get_state(), outputs_of(block, 5 * h)
+    point = capture(block, rollback=True)                    # the FMU layer's rollback point
+    for k in range(5, 12):
+        block.advance(k * h, h, inputs(block, k, h))
+    block.set_state(point, check=False)
+    np.testing.assert_equal(capture(block), saved)
     for k in range(5, 12):
         block.advance(k * h, h, inputs(block, k, h))
     block.set_state(saved, check=False)                     # the rollback of a refused step
@@ -174,6 +180,68 @@ def test_a_rollback_restores_items_a_failed_step_removed_from_a_container():
     block.set_state(saved, check=False)                       # the slave's rollback
     assert block.history == [1.0, 2.0, 3.0]
     assert len(block.pairs) == 1 and block.pairs[0][0] == 0.0 and np.array_equal(block.pairs[0][1], np.zeros(2))
+
+
+# --------------------------------------------------------------------------- immutable objects
+class _Samples:
+    """An immutable object (observers.state): new ones from ``after``, numbers checked when built."""
+
+    immutable = True
+
+    def __init__(self, values=(0.0, 0.0)):
+        self.values = values                                  # the last two samples
+
+    def after(self, value):
+        if not abs(value) <= 1e100:
+            raise SignalError(f"sample {value}")
+        return _Samples((self.values[-1], value))
+
+
+class _WithSamples(Block):
+    def __init__(self):
+        self.x, self.samples = np.zeros(2), _Samples()
+        self.input_sizes, self.output_sizes = {}, {}
+
+    def advance(self, t, h, inputs):
+        self.x, self.samples = self.x + h, self.samples.after(t + h)
+
+
+def test_a_rollback_point_shares_immutable_objects_and_a_checked_restore_never_writes_into_them():
+    block = _WithSamples()
+    block.advance(0.0, 1.0, {})
+    leaves = Leaves()
+    point = capture(block, leaves, rollback=True)
+    assert point["samples"] is block.samples                 # kept as it is, its numbers not collected
+    assert [a.tolist() for a in leaves.arrays] == [[1.0, 1.0]] and leaves.floats == []
+    plain = capture(block)
+    assert plain["samples"] == {"values": (0.0, 1.0)}        # the plain tree has them as data
+    with pytest.raises(SignalError):
+        block.advance(1.0, np.inf, {})
+    block.advance(1.0, 1.0, {})
+    restore(block, point, check=False)                       # the rollback
+    assert block.samples is point["samples"] and block.samples.values == (0.0, 1.0)
+    other = _WithSamples()
+    restore(block, capture(other))                           # a checked restore builds a new object
+    assert block.samples.values == (0.0, 0.0) and block.samples is not point["samples"]
+    assert point["samples"].values == (0.0, 1.0)             # the rollback point is intact
+    restore(block, point, check=False)
+    np.testing.assert_array_equal(block.x, [1.0, 1.0])
+    assert block.samples.values == (0.0, 1.0)
+
+
+def test_the_immutable_input_histories_refuse_numbers_they_cannot_hold():
+    history = PolynomialInputs(2)
+    polynomials, history = history.step(0.0, 0.1, {"y": Segment(np.array([1.0]), np.array([2.0]))})
+    assert history.samples["y"][2][-1] == pytest.approx(1.2)
+    with pytest.raises(SignalError, match="input y: not finite or beyond 1e\\+100"):
+        history.step(0.1, 0.1, {"y": Segment(np.array([1.2]), np.array([2e101]))})    # ends at 2e100
+    with pytest.raises(SignalError, match="input y"):
+        history.step(0.1, 0.1, {"y": Segment(np.array([np.inf]), np.array([0.0]))})
+    integral = IntegralSamples(2).after(0.0, 0.1, 0.5)
+    assert integral.samples[2][-1] == 0.5
+    for change in (np.nan, np.inf, 2e100):
+        with pytest.raises(SignalError, match="int f\\(y\\) over the step to t = 0.2"):
+            integral.after(0.1, 0.1, change)
 
 
 # --------------------------------------------------------------------------- restore checks

@@ -209,6 +209,21 @@ def test_forged_states_in_the_right_format_are_refused(live, kind, forgery):
     refused(probe, step, forged(probe, good, change), expected)
 
 
+@pytest.mark.parametrize("kind", ["ltv-adaptive-observer", "ltv-output-nonlinear-plant"])
+@pytest.mark.parametrize("sample, expected", [(np.nan, "is not finite"), (1e300, "exceeds the bound")])
+def test_a_forged_input_sample_is_refused(live, kind, sample, expected):
+    """The input history is an immutable object, which a rollback point shares without testing its
+    numbers (observers.state); the numbers of a restored state are all tested."""
+    probe, step, good = live(kind)
+
+    def change(tree):
+        samples = tree["block"]["inputs"]["samples"]
+        count, times, values = samples["u"]
+        assert count >= 2                                     # a history to forge
+        samples["u"] = (count, times, values[:-2] + (sample, values[-1]))
+    refused(probe, step, forged(probe, good, change), expected)
+
+
 def test_a_state_brings_its_state_machine_state_and_whether_parameters_are_fixed(live, kind_fmus):
     """A state saved while stepping, restored into an instance still in initialization mode: stepping
     goes on and parameters are fixed; a state saved in initialization mode, restored into a running
