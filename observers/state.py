@@ -78,14 +78,13 @@ def _declared(cls: type, attribute: str) -> dict | tuple:
             for klass in reversed(cls.__mro__):
                 cached.update(vars(klass).get(attribute, {}))
         _DECLARED[key] = cached
-        if attribute == "not_state":
-            _NOT_STATE[cls] = cached
     return cached
 
 
 _DECLARED: dict[tuple[type, str], Any] = {}
-#: ``not_state`` by class (the lookup of every captured object) and the classes found to be objects
-_NOT_STATE: dict[type, frozenset] = {}
+#: class -> (the attribute names of its instance last captured, those of them that are state)
+_LAYOUTS: dict[type, tuple[tuple[str, ...], tuple[str, ...]]] = {}
+#: the classes found to be objects
 _OBJECTS: set[type] = set()
 #: the classes found to declare ``immutable = True``
 _IMMUTABLE_OBJECTS: set[type] = set()
@@ -114,13 +113,15 @@ def capture(obj, leaves: Leaves | None = None, rollback: bool = False) -> dict:
     ``rollback``: a rollback point of this very block, for :func:`restore` with ``check=False``
     only -- immutable objects (module docstring) are kept as they are and their numbers not
     collected."""
-    skip = _NOT_STATE.get(type(obj))
-    if skip is None:
+    attributes = vars(obj)
+    names = tuple(attributes)
+    layout = _LAYOUTS.get(type(obj))
+    if layout is None or layout[0] != names:          # the attributes less not_state, by class
         skip = _declared(type(obj), "not_state")
+        layout = _LAYOUTS[type(obj)] = (names, tuple(name for name in names if name not in skip))
     tree = {}
-    for name, value in vars(obj).items():
-        if name in skip:
-            continue
+    for name in layout[1]:
+        value = attributes[name]
         kind = type(value)
         if kind is np.ndarray and value.dtype in _NUMBER_DTYPES:    # the common leaves, without a call
             if leaves is not None:
@@ -147,6 +148,8 @@ def capture(obj, leaves: Leaves | None = None, rollback: bool = False) -> dict:
 
 def _capture(value, leaves, rollback=False):
     kind = type(value)
+    if kind in _OBJECTS:                               # an object met before (a detector in a list)
+        return capture(value, leaves, rollback)
     if kind is np.ndarray:
         if value.dtype not in DTYPES:
             raise StateError(f"arrays of dtype {value.dtype} cannot be kept in a state")
