@@ -229,7 +229,7 @@ class _BatchPlan:
     reads (``outputs``) after it; where they go among the FMU's inputs and outputs."""
 
     __slots__ = ("input_vrs", "output_vrs", "given_data", "values", "slopes", "outputs", "derivatives", "positions",
-                 "given", "held", "whole_ports", "in_order", "output_order")
+                 "given", "held", "common", "in_order", "output_order")
 
     def __init__(self, input_vrs, derivatives, output_vrs, positions: list[int], input_slices: dict[str, slice],
                  output_positions: list[int], output_count: int):
@@ -240,11 +240,15 @@ class _BatchPlan:
         self.positions = np.array(positions, dtype=np.intp)      # each value's place in the flat inputs
         given = set(positions)
         covered = {port: sum(i in given for i in range(where.start, where.stop)) for port, where in input_slices.items()}
-        self.given = tuple((port, input_slices[port]) for port, n in covered.items() if n)   # ports set by the call
-        self.held = [port for port, n in covered.items() if not n]                     # ports left as they are
-        self.whole_ports = all(covered[port] in (0, where.stop - where.start) for port, where in input_slices.items())
         size = sum(where.stop - where.start for where in input_slices.values())
         self.in_order = list(positions) == list(range(size))     # every input, in declaration order
+        # ports set by the call and where they are in its vectors (None: the only port, the whole vectors)
+        self.given = tuple((port, None if self.in_order and len(input_slices) == 1 else input_slices[port])
+                           for port, n in covered.items() if n)
+        self.held = [port for port, n in covered.items() if not n]                     # ports left as they are
+        # the plan's part of a common step: slopes given, every port given whole or not at all
+        self.common = self.derivatives and \
+            all(covered[port] in (0, where.stop - where.start) for port, where in input_slices.items())
         # positions in the flat outputs; None: all of them in declaration order (nothing to permute)
         self.output_order = None if list(output_positions) == list(range(output_count)) else \
             np.array(output_positions, dtype=np.intp)
@@ -775,7 +779,7 @@ class BlockSlave(Fmi2Slave):
         plan, block, t, h = self._batch, self._block, current_time, step_size
         values, slopes, data = plan.values, plan.slopes, plan.given_data
         # |value + h slope| <= (1 + h) |(value, slope)|: a common step's inputs at the end are within the bound
-        common = plan.derivatives and plan.whole_ports and block is not None and not self._bad \
+        common = plan.common and block is not None and not self._bad \
             and 0.0 < h < math.inf and math.isfinite(t) and \
             data.dot(data) * (1.0 + h) ** 2 <= self._bound * self._bound      # False if NaN
         if not common:
@@ -795,8 +799,11 @@ class BlockSlave(Fmi2Slave):
             end = slope * h
             end += start
             for port, where in plan.given:
-                derivatives[port], ends[port] = slope[where], end[where]
-                segments[port] = Segment(start[where], derivatives[port])
+                if where is None:
+                    derivatives[port], ends[port], segments[port] = slope, end, Segment(start, slope)
+                else:
+                    derivatives[port], ends[port] = slope[where], end[where]
+                    segments[port] = Segment(start[where], derivatives[port])
         self._derivatives = derivatives
         if block.stateless:
             segments = None
