@@ -161,11 +161,45 @@ class StepClock:
         return (self.last - self.first) / (self.count - 1)
 
 
+class LineCount(StepClock):
+    """Python lines executed per step of a run, set-up left out as by :class:`StepClock` (the tracer counts
+    between the first and the last communication point): the glue a path runs, free of the machine's
+    noise, for comparing code versions -- not time (numpy's C code is not counted)."""
+
+    def __init__(self, count: int):
+        super().__init__(count)
+        self.lines = 0
+
+    def __call__(self) -> bool:
+        self.calls += 1
+        if self.calls == self.count:
+            self.last = self.lines
+        elif self.calls == 1:
+            self.first = self.lines
+        return False
+
+    def trace(self, frame, event, arg):
+        if event == "line" and self.first is not None and self.last is None:
+            self.lines += 1
+        return self.trace
+
+
 def timed_steps(run, steps: int) -> float:
     """CPU seconds per step of ``run(clock)`` (a run of ``steps`` steps calling ``clock`` after each)."""
     clock = StepClock(steps)
     run(clock)
     return clock.per_step()
+
+
+def traced_lines(run, steps: int) -> float:
+    """Python lines per step of ``run(clock)`` (:class:`LineCount`)."""
+    counter = LineCount(steps)
+    sys.settrace(counter.trace)
+    try:
+        run(counter)
+    finally:
+        sys.settrace(None)
+    return counter.per_step()
 
 
 def per_step_case(label, definitions, components, connections, step, build):
@@ -184,14 +218,15 @@ def per_step_case(label, definitions, components, connections, step, build):
     plain = [d[0] if isinstance(d, tuple) else d for d in definitions]
     starts = {i: s for i, _, s in components}
     slaves = InProcessSlaves(session)
-    def direct(steps, own_rollback=True):
+    def direct(steps, own_rollback=True, measure=timed_steps):
         loop = DirectLoop(plain, components, connections)
         for node in loop.nodes:          # False: the blocks skip their own save/restore around a step
             node.block.caller_rolls_back = not own_rollback
-        return timed_steps(lambda clock: loop.run(steps * step, step, after_point=clock), steps)
+        return measure(lambda clock: loop.run(steps * step, step, after_point=clock), steps)
 
-    return session, {
-        "fmu": lambda steps: timed_steps(lambda clock: session.run(steps * step, step, should_stop=clock), steps),
+    return session, {      # "fmu" and "direct" also take measure=traced_lines
+        "fmu": lambda steps, measure=timed_steps: measure(
+            lambda clock: session.run(steps * step, step, should_stop=clock), steps),
         "slave": lambda steps: timed_steps(lambda clock: slaves.run(steps * step, step, starts, clock), steps),
         "direct": direct,
         "direct, no own rollback": lambda steps: direct(steps, own_rollback=False),
@@ -235,6 +270,10 @@ def section_per_step(args, build):
         report(f"1. {label}: FMU/direct", today.get(label, "4.4-8.1x" if "chain" in label else "-"),
                f"{fmu:.0f} vs {block:.0f} us ({ratio:.2f}x; {split})", f"<= {goal.get(label, 1.5)}x",
                ratio <= goal.get(label, 1.5))
+        lines = {key: paths[key](50, measure=traced_lines) for key in ("fmu", "direct")}
+        report(f"1. {label}: Python lines run per step, FMU path vs direct loop", "-",
+               f"{lines['fmu']:.0f} vs {lines['direct']:.0f} ({lines['fmu'] / lines['direct']:.2f}x; deterministic, "
+               f"for comparing code versions)", "-", None)
         bare = per_step["direct, no own rollback"]
         if bare < 0.98 * block:      # a block that saves and restores its own state around a step (uio)
             report(f"1. {label}: the same against a direct loop whose blocks skip their own rollback", "-",
