@@ -263,6 +263,7 @@ def section_per_step(args, build):
             for _ in range(args.repeats):
                 for key in best:
                     best[key] = min(best[key], paths[key](count))
+            lines = {key: paths[key](50, measure=traced_lines) for key in ("fmu", "direct")}
         per_step = {key: best[key] * 1e6 for key in paths}
         fmu, slave, block = (per_step[k] for k in ("fmu", "slave", "direct"))
         ratio = fmu / block
@@ -270,7 +271,6 @@ def section_per_step(args, build):
         report(f"1. {label}: FMU/direct", today.get(label, "4.4-8.1x" if "chain" in label else "-"),
                f"{fmu:.0f} vs {block:.0f} us ({ratio:.2f}x; {split})", f"<= {goal.get(label, 1.5)}x",
                ratio <= goal.get(label, 1.5))
-        lines = {key: paths[key](50, measure=traced_lines) for key in ("fmu", "direct")}
         report(f"1. {label}: Python lines run per step, FMU path vs direct loop", "-",
                f"{lines['fmu']:.0f} vs {lines['direct']:.0f} ({lines['fmu'] / lines['direct']:.2f}x; deterministic, "
                f"for comparing code versions)", "-", None)

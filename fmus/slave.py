@@ -71,7 +71,7 @@ from pythonfmu.default_experiment import DefaultExperiment
 
 from observers.block import MAGNITUDE_BOUND, Block, Segment
 from observers.checks import ParameterError
-from observers.state import Leaves, StateError, capture, out_of_bounds, within, within_bound
+from observers.state import Leaves, StateError, capture, out_of_bounds, plain, within, within_bound
 
 from .definition import FmuDefinition, element_unit
 from .kinds import create_block
@@ -890,7 +890,12 @@ class BlockSlave(Fmi2Slave):
         whether initialization is over, and ``loader``: the native binary's own fields (its FMI
         version and state machine state, ``{"fmi": 2, "state": "stepComplete"}``), kept in the state
         and its bytes for the binary (:meth:`loader_fields`); None without the binary."""
-        block = None if self._block is None else capture(self._block)
+        block = None
+        if self._block is not None:
+            if self._snapshot is None:
+                leaves = Leaves()
+                self._snapshot = (capture(self._block, leaves, rollback=True), leaves)
+            block = self._snapshot[0]       # immutable objects kept as they are: plain data in its bytes
         return FmuState(self.identity, {
             "time": self._time,
             "params": {name: value.copy() for name, value in self._params.items()},
@@ -953,7 +958,8 @@ class BlockSlave(Fmi2Slave):
         try:
             leaves, bound = Leaves(), block.magnitude_bound
             snapshot = (capture(block, leaves, rollback=True), leaves)
-            found = out_of_bounds(tree["block"], bound)        # every number restored (immutable objects' too)
+            found = out_of_bounds(tree["block"], bound)        # every number restored (immutable objects:
+                                                               # objects only in a state of this process)
             fault = found and f"state {found[0]} = {_verdict(found[1], bound)}"
             outputs = None                 # inputs that are not usable: the next step refuses, naming them
             if all(within(value, bound) for value in tree["inputs"].values()):
@@ -1007,7 +1013,7 @@ class BlockSlave(Fmi2Slave):
     def serialize_fmu_state(self, state) -> bytes:
         """The bytes of ``state`` (:mod:`fmus.state_format`): the one serialized form of an FMU state."""
         state = self._own(state)
-        return pack(state.identity, state.tree)
+        return pack(state.identity, plain(state.tree))
 
     def deserialize_fmu_state(self, data: bytes) -> FmuState:
         """An FMU state from bytes of :meth:`serialize_fmu_state`; anything else is refused

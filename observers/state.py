@@ -32,10 +32,10 @@ Immutable objects: a class whose instances never change once built (its methods 
 ones, as :class:`~observers.ltv_stepping.PolynomialInputs` does) and that checks the numbers it
 is built from -- finite and within :data:`~observers.block.MAGNITUDE_BOUND`, else
 :class:`~observers.checks.SignalError` -- declares ``immutable = True``.  A *rollback point*
-(``capture(block, rollback=True)``, the FMU layer's point to return to after a refused step)
-then keeps such an object as it is instead of walking it, and its numbers are not collected
-for the bound test: they were checked when it was built.  The plain tree of an FMU state
-still holds them as data.
+(``capture(block, rollback=True)``, the FMU layer's point to return to after a refused step, and
+the block part of its in-memory FMU states) then keeps such an object as it is instead of walking
+it, and its numbers are not collected for the bound test: they were checked when it was built.
+:func:`plain` turns them into data where a tree leaves the process (the bytes of an FMU state).
 """
 
 from __future__ import annotations
@@ -46,8 +46,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["StateError", "DTYPES", "Leaves", "capture", "restore", "within", "within_bound", "unchanged_skipped",
-           "out_of_bounds", "is_plain"]
+__all__ = ["StateError", "DTYPES", "Leaves", "capture", "restore", "plain", "within", "within_bound",
+           "unchanged_skipped", "out_of_bounds", "is_plain"]
 
 #: dtypes a state array may have (little-endian on every supported platform)
 DTYPES = (np.dtype(np.float64), np.dtype(np.int64), np.dtype(np.bool_), np.dtype(np.complex128))
@@ -110,9 +110,8 @@ def capture(obj, leaves: Leaves | None = None, rollback: bool = False) -> dict:
     """The state of ``obj`` as a tree (arrays shared, containers copied); :class:`StateError`
     names an attribute whose value cannot be kept in a state.  ``leaves`` collects its numbers.
 
-    ``rollback``: a rollback point of this very block, for :func:`restore` with ``check=False``
-    only -- immutable objects (module docstring) are kept as they are and their numbers not
-    collected."""
+    ``rollback``: a rollback point of this very block -- immutable objects (module docstring) are
+    kept as they are and their numbers not collected; :func:`plain` makes it plain data."""
     attributes = vars(obj)
     names = tuple(attributes)
     layout = _LAYOUTS.get(type(obj))
@@ -225,7 +224,9 @@ def _plan_object(obj, tree, path: str, plan: list, check: bool, depth: int) -> N
 def _plan_value(owner, name, live, data, path, plan, check, depth, optional):
     if depth > MAX_DEPTH:
         raise StateError(f"{path}: nested deeper than {MAX_DEPTH}")
-    if not check and type(data) in _IMMUTABLE_OBJECTS:     # kept as it is by a rollback point
+    if type(data) in _IMMUTABLE_OBJECTS:               # kept as it is by a rollback point
+        if check and type(live) is not type(data):
+            raise StateError(f"{path}: expected {_kind(live)}, got {_kind(data)}")
         return data
     if data is None or live is None:
         if data is None and live is None:
@@ -302,6 +303,19 @@ def _copy_containers(data):
     if kind is dict:
         return {key: _copy_containers(item) for key, item in data.items()}
     return data
+
+
+def plain(tree):
+    """``tree`` (of :func:`capture`) with the immutable objects a rollback point keeps as they are
+    replaced by their plain trees: data that names no class."""
+    kind = type(tree)
+    if kind in _IMMUTABLE_OBJECTS:
+        return capture(tree)
+    if kind is dict:
+        return {key: plain(value) for key, value in tree.items()}
+    if kind is list or kind is tuple:
+        return kind(plain(value) for value in tree)
+    return tree
 
 
 def is_plain(data, depth: int = 0) -> bool:

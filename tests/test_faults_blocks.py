@@ -22,7 +22,7 @@ from observers.block import Block, Segment
 from observers.integrators import BudgetError, require_budget, substep_count
 from observers.checks import ParameterError, SignalError
 from observers.ltv_stepping import IntegralSamples, PolynomialInputs
-from observers.state import Leaves, StateError, capture, restore
+from observers.state import Leaves, StateError, capture, plain, restore
 
 
 def definitions() -> dict[str, tuple[float, object]]:
@@ -213,8 +213,8 @@ def test_a_rollback_point_shares_immutable_objects_and_a_checked_restore_never_w
     point = capture(block, leaves, rollback=True)
     assert point["samples"] is block.samples                 # kept as it is, its numbers not collected
     assert [a.tolist() for a in leaves.arrays] == [[1.0, 1.0]] and leaves.floats == []
-    plain = capture(block)
-    assert plain["samples"] == {"values": (0.0, 1.0)}        # the plain tree has them as data
+    data = capture(block)
+    assert data["samples"] == {"values": (0.0, 1.0)}         # the plain tree has them as data
     with pytest.raises(SignalError):
         block.advance(1.0, np.inf, {})
     block.advance(1.0, 1.0, {})
@@ -227,6 +227,14 @@ def test_a_rollback_point_shares_immutable_objects_and_a_checked_restore_never_w
     restore(block, point, check=False)
     np.testing.assert_array_equal(block.x, [1.0, 1.0])
     assert block.samples.values == (0.0, 1.0)
+    np.testing.assert_equal(plain(point), capture(block))    # as data: what leaves the process
+    block.advance(1.0, 1.0, {})
+    restore(block, point)                                    # a checked restore takes the object as it is
+    assert block.samples is point["samples"]
+    with pytest.raises(StateError, match="_WithSamples.samples: expected the attributes of a _Samples, got a tuple of 2"):
+        restore(block, {**point, "samples": (0.0, 1.0)})
+    with pytest.raises(StateError, match="_WithSamples.x: expected an array float64.2., got a _Samples"):
+        restore(block, {**point, "x": point["samples"]})
 
 
 def test_the_immutable_input_histories_refuse_numbers_they_cannot_hold():
