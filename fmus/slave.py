@@ -652,14 +652,16 @@ class BlockSlave(Fmi2Slave):
         ``ends[port]``, a new array nobody writes into, is kept as it is); an interpolated input was
         set as its value at ``time + step``.
         """
+        last, derivatives, end_time = self._last_inputs, self._derivatives, time + step
         for port, value in self._inputs.items():
-            if ends and port in ends:
-                value[:] = kept = ends[port]
+            end = ends.get(port) if ends else None
+            if end is not None:                  # ends: inputs with a derivative
+                value[:] = end
+                last[port] = (end, end_time)
             else:
-                kept = value.copy()
-            at_end = port in self._derivatives or self._modes[port][0] == _INTERPOLATE
-            self._last_inputs[port] = (kept, time + step if at_end else time)
-        self._derivatives.clear()
+                at_end = port in derivatives or self._modes[port][0] == _INTERPOLATE
+                last[port] = (value.copy(), end_time if at_end else time)
+        derivatives.clear()
         if self._bad:
             self._bad = {name: value for name, value in self._bad.items() if not name.startswith("der(")}
 
@@ -705,12 +707,11 @@ class BlockSlave(Fmi2Slave):
         With ``plan`` (:meth:`step_batched`, every output in declaration order, the inputs at the end
         bounded by construction) the outputs are written into ``plan.outputs`` and tested there as one
         vector; the binary copies that vector out only when the step is taken."""
-        inputs = self._inputs
+        inputs, bound = self._inputs, self._bound
         at_end = {**inputs, **ends} if ends else inputs
-        before = None if block.stateless else self._snapshot   # the state now, checked (or None)
-        checked = None if before is None else before[1]
-        if before is None and not block.stateless:
-            before = (capture(block, rollback=True), None)
+        # the state now (checked, with its leaves, or captured now) to roll back to; None: a stateless block
+        before = None if block.stateless else self._snapshot or (capture(block, rollback=True), None)
+        checked = before and before[1]
         tree = leaves = outputs = None
         try:
             if before is not None:
@@ -719,10 +720,10 @@ class BlockSlave(Fmi2Slave):
                 tree = capture(block, leaves, rollback=True)
             outputs = block.outputs(t + h, at_end)
             if plan is None:
-                tested = within_bound(leaves, self._bound, checked, [*ends.values(), *outputs.values()])
+                tested = within_bound(leaves, bound, checked, [*ends.values(), *outputs.values()])
             else:
                 self._write_outputs(plan, outputs)
-                tested = within(plan.outputs, self._bound) and within_bound(leaves, self._bound, checked)
+                tested = within(plan.outputs, bound) and within_bound(leaves, bound, checked)
             fault = None if tested else self._fault(tree, leaves, checked, ends, outputs, None)
         except BaseException as exc:            # KeyboardInterrupt too: roll back, then let it through
             if before is not None:
@@ -777,18 +778,17 @@ class BlockSlave(Fmi2Slave):
         nothing changed but the inputs; an exception: no step was taken.
         """
         plan, block, t, h = self._batch, self._block, current_time, step_size
-        values, slopes, data = plan.values, plan.slopes, plan.given_data
+        data = plan.given_data
         # |value + h slope| <= (1 + h) |(value, slope)|: a common step's inputs at the end are within the bound
-        common = plan.common and block is not None and not self._bad \
-            and 0.0 < h < math.inf and math.isfinite(t) and \
-            data.dot(data) * (1.0 + h) ** 2 <= self._bound * self._bound      # False if NaN
-        if not common:
+        if not (plan.common and block is not None and not self._bad and 0.0 < h < math.inf and math.isfinite(t)
+                and data.dot(data) * (1.0 + h) ** 2 <= self._bound * self._bound):      # False if NaN
             return self._step_by_calls(plan, t, h)
         if self._feedthrough:
             self._outputs_cache = None
         flat = self._input_flat
         derivatives, ends, segments = {}, {}, {}
         if plan.given:
+            values, slopes = plan.values, plan.slopes
             if plan.in_order:                                 # every input, in order: whole vectors
                 flat[:] = values
                 start, slope = values.copy(), slopes.copy()   # new vectors: the block may keep views of them
