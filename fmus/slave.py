@@ -958,8 +958,8 @@ class BlockSlave(Fmi2Slave):
         try:
             leaves, bound = Leaves(), block.magnitude_bound
             snapshot = (capture(block, leaves, rollback=True), leaves)
-            found = out_of_bounds(tree["block"], bound)        # every number restored (immutable objects:
-                                                               # objects only in a state of this process)
+            # every number restored; an immutable object (only in a state of this process) was checked when built
+            found = out_of_bounds(tree["block"], bound)
             fault = found and f"state {found[0]} = {_verdict(found[1], bound)}"
             outputs = None                 # inputs that are not usable: the next step refuses, naming them
             if all(within(value, bound) for value in tree["inputs"].values()):

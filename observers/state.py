@@ -225,7 +225,7 @@ def _plan_value(owner, name, live, data, path, plan, check, depth, optional):
     if depth > MAX_DEPTH:
         raise StateError(f"{path}: nested deeper than {MAX_DEPTH}")
     if type(data) in _IMMUTABLE_OBJECTS:               # kept as it is by a rollback point
-        if check and type(live) is not type(data):
+        if check and type(live) is not type(data) and not (live is None and optional):
             raise StateError(f"{path}: expected {_kind(live)}, got {_kind(data)}")
         return data
     if data is None or live is None:

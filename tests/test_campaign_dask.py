@@ -86,8 +86,9 @@ def _wait_for(condition, timeout: float, what: str):
 
 def test_an_interrupted_sweep_resumes_with_only_the_missing_samples(client, build_dir, tmp_path):
     out = tmp_path / "resume"
-    # 1500 steps per sample (~0.5 s): the interrupt comes after the first stored sample and well before the last
-    command = OBSFMU + ["sweep", "ltv-ls-bounded", "--vary", "plant.k[1]=-4:-2:10", "--stop-time", "1.5",
+    # 3000 steps per sample (~1 s on 2 workers, ~5 s in all): the interrupt comes after the first stored
+    # sample and well before the last (with 1500 steps one CI run saw the sweep finish first)
+    command = OBSFMU + ["sweep", "ltv-ls-bounded", "--vary", "plant.k[1]=-4:-2:10", "--stop-time", "3",
                         "--step", "1e-3", "--scheduler", client.scheduler.address, "--out", str(out), "--build-dir", str(build_dir),
                         "--no-plots"]
     first = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,

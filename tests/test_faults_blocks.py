@@ -206,6 +206,14 @@ class _WithSamples(Block):
         self.x, self.samples = self.x + h, self.samples.after(t + h)
 
 
+class _OptionalSamples(_WithSamples):
+    state_optional = {"samples": None}
+
+    def __init__(self):
+        super().__init__()
+        self.samples = None
+
+
 def test_a_rollback_point_shares_immutable_objects_and_a_checked_restore_never_writes_into_them():
     block = _WithSamples()
     block.advance(0.0, 1.0, {})
@@ -235,6 +243,13 @@ def test_a_rollback_point_shares_immutable_objects_and_a_checked_restore_never_w
         restore(block, {**point, "samples": (0.0, 1.0)})
     with pytest.raises(StateError, match="_WithSamples.x: expected an array float64.2., got a _Samples"):
         restore(block, {**point, "x": point["samples"]})
+    fresh = _WithSamples()
+    fresh.samples = None                                     # not set yet, and not declared optional
+    with pytest.raises(StateError, match="_WithSamples.samples: expected a NoneType, got a _Samples"):
+        restore(fresh, point)
+    optional = _OptionalSamples()                            # declared optional
+    restore(optional, point)
+    assert optional.samples is point["samples"]
 
 
 def test_the_immutable_input_histories_refuse_numbers_they_cannot_hold():
