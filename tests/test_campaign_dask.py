@@ -86,13 +86,15 @@ def _wait_for(condition, timeout: float, what: str):
 
 def test_an_interrupted_sweep_resumes_with_only_the_missing_samples(client, build_dir, tmp_path):
     out = tmp_path / "resume"
-    # 3000 steps per sample (~1 s on 2 workers, ~5 s in all): the interrupt comes after the first stored
-    # sample and well before the last (with 1500 steps one CI run saw the sweep finish first)
-    command = OBSFMU + ["sweep", "ltv-ls-bounded", "--vary", "plant.k[1]=-4:-2:10", "--stop-time", "3",
+    # 1500 steps per sample (~0.5 s): the interrupt comes after the first stored sample and well before the last
+    command = OBSFMU + ["sweep", "ltv-ls-bounded", "--vary", "plant.k[1]=-4:-2:10", "--stop-time", "1.5",
                         "--step", "1e-3", "--scheduler", client.scheduler.address, "--out", str(out), "--build-dir", str(build_dir),
                         "--no-plots"]
+    # Ctrl-C as in a terminal, also when the tests run with SIGINT ignored (a shell's background job):
+    # Python inherits an ignored SIGINT and then raises no KeyboardInterrupt
     first = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                             cwd=Path(__file__).resolve().parents[1])
+                             cwd=Path(__file__).resolve().parents[1],
+                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     _wait_for(lambda: list((out / "samples").glob("part-*.parquet")) or first.poll() is not None, 120,
               "the first stored samples")
     first.send_signal(signal.SIGINT)
