@@ -139,17 +139,25 @@ def _extracted(fmu: Path) -> Path:
     return target
 
 
+#: a partial extraction (``.<digest>.*``) this old was left by a killed run: removed when pruning
+ABANDONED_AFTER = 3600.0
+
+
 def _prune(keep: Path) -> None:
-    """Remove all but the :data:`EXTRACT_CACHE_SIZE` most recently used entries (never ``keep``).
+    """Remove all but the :data:`EXTRACT_CACHE_SIZE` most recently used entries (never ``keep``), and
+    partial extractions older than :data:`ABANDONED_AFTER` seconds (a run killed while extracting).
     Other processes prune the same cache at the same time: an entry gone meanwhile is skipped."""
-    used = []
+    used, abandoned, now = [], [], wallclock.time()
     for entry in EXTRACT_CACHE.iterdir():
         try:
-            if not entry.name.startswith("."):
-                used.append((entry.stat().st_mtime, entry.name))
+            modified = entry.stat().st_mtime
         except OSError:
             continue
-    for _, name in sorted(used, reverse=True)[EXTRACT_CACHE_SIZE:]:
+        if not entry.name.startswith("."):
+            used.append((modified, entry.name))
+        elif now - modified > ABANDONED_AFTER:
+            abandoned.append(entry.name)
+    for name in abandoned + [name for _, name in sorted(used, reverse=True)[EXTRACT_CACHE_SIZE:]]:
         if name != keep.name:
             shutil.rmtree(EXTRACT_CACHE / name, ignore_errors=True)
 

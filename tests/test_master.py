@@ -57,7 +57,8 @@ def test_discarded_step_reports_the_fmu_message(ship_fmus):
 
 def test_the_extract_cache_skips_entries_another_process_removed(ship_fmus, tmp_path, monkeypatch):
     """Concurrent runs (``obsfmu all --jobs N``, other users) prune one cache: an entry that vanishes
-    between listing and ``stat`` (here a dangling link) is skipped, and the cache stays bounded."""
+    between listing and ``stat`` (here a dangling link) is skipped, and the cache stays bounded; a
+    partial extraction an hour old (a killed run's) goes, one in progress stays."""
     import os
 
     from fmus import master
@@ -70,7 +71,10 @@ def test_the_extract_cache_skips_entries_another_process_removed(ship_fmus, tmp_
     for age in range(3):
         (cache / f"old{age}").mkdir()
         os.utime(cache / f"old{age}", (1000 + age, 1000 + age))
+    (cache / ".abandoned.x").mkdir()                         # left by a run killed while extracting
+    os.utime(cache / ".abandoned.x", (1000, 1000))
+    (cache / ".extracting.y").mkdir()                        # another run extracting now
     path = master._extracted(ship_fmus["ship_plant"])
     assert (path / "modelDescription.xml").is_file()
     kept = sorted(entry.name for entry in cache.iterdir() if entry.is_dir() and not entry.is_symlink())
-    assert kept == sorted([path.name, "old2"])
+    assert kept == sorted([path.name, "old2", ".extracting.y"])
