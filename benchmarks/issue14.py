@@ -10,7 +10,9 @@ minimum of ``--repeats`` interleaved repeats (every case of a section is run onc
    chain FMU, is collected when it comes), for ``ship``, ``ltv-ls-bounded``, ``uio-ftdrem`` and integrator chains of
    order 2..50 built from a config (:mod:`benchmarks.chains`); with the split of the FMU path's
    cost: block (the direct loop), generic slave (the same slave objects driven in this process
-   the way the C bridge drives them), and what remains (C bridge, ctypes, master).
+   the way the C bridge drives them), and what remains (C bridge, ctypes, master); and the Python
+   lines each path runs per step (:class:`LineCount`: deterministic, for comparing code versions
+   where the machine's noise hides a few per cent).
 2. ``ltv-ls-bounded`` (20 s): ``obsfmu run`` vs one monolithic LSODA solve of the same closed
    loop, both as whole processes, at equal error against the stored reference; ``ltv-ls`` CPU.
 3. Start-up: ``obsfmu list``, a short ``obsfmu run ship``, the first instantiation of each
