@@ -552,11 +552,16 @@ class BlockSlave(Fmi2Slave):
         return None
 
     @staticmethod
-    def _state_fault(tree: dict, leaves: Leaves, previous: Leaves | None, bound: float) -> str | None:
-        """The first state value that is not finite or beyond ``bound`` (arrays of ``previous`` skipped)."""
-        if within_bound(leaves, bound, previous):
+    def _state_fault(tree: dict, leaves: Leaves | None, previous: Leaves | None, bound: float) -> str | None:
+        """The first state value that is not finite or beyond ``bound``: tested in one vector of ``leaves``
+        (arrays of ``previous`` skipped), walked only if that fails; ``leaves`` None: walked (a restored
+        state, whose immutable objects are plain data when it came as bytes)."""
+        if leaves is not None and within_bound(leaves, bound, previous):
             return None
-        path, value = out_of_bounds(tree, bound) or ("state", float("nan"))
+        found = out_of_bounds(tree, bound)
+        if found is None and leaves is None:
+            return None
+        path, value = found or ("state", float("nan"))
         return f"state {path} = {_verdict(value, bound)}"
 
     def _suspects(self) -> str:
@@ -959,8 +964,7 @@ class BlockSlave(Fmi2Slave):
             leaves, bound = Leaves(), block.magnitude_bound
             snapshot = (capture(block, leaves, rollback=True), leaves)
             # every number restored; an immutable object (only in a state of this process) was checked when built
-            found = out_of_bounds(tree["block"], bound)
-            fault = found and f"state {found[0]} = {_verdict(found[1], bound)}"
+            fault = self._state_fault(tree["block"], None, None, bound)
             outputs = None                 # inputs that are not usable: the next step refuses, naming them
             if all(within(value, bound) for value in tree["inputs"].values()):
                 outputs = block.outputs(tree["time"], tree["inputs"])

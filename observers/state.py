@@ -130,13 +130,6 @@ def capture(obj, leaves: Leaves | None = None, rollback: bool = False) -> dict:
             if leaves is not None:
                 leaves.floats.append(value)
             tree[name] = value
-        elif rollback and kind in _IMMUTABLE_OBJECTS:                # checked when built, never changed
-            tree[name] = value
-        elif kind in _OBJECTS:                                       # an object met before (an estimator)
-            try:
-                tree[name] = capture(value, leaves, rollback)
-            except StateError as exc:
-                raise StateError(f"{type(obj).__name__}.{name}: {exc}") from None
         else:
             try:
                 tree[name] = _capture(value, leaves, rollback)
@@ -147,8 +140,10 @@ def capture(obj, leaves: Leaves | None = None, rollback: bool = False) -> dict:
 
 def _capture(value, leaves, rollback=False):
     kind = type(value)
-    if kind in _OBJECTS:                               # an object met before (a detector in a list)
+    if kind in _OBJECTS:                               # an object met before (an estimator, a detector)
         return capture(value, leaves, rollback)
+    if kind in _IMMUTABLE_OBJECTS:                     # checked when built, never changed
+        return value if rollback else capture(value, leaves)
     if kind is np.ndarray:
         if value.dtype not in DTYPES:
             raise StateError(f"arrays of dtype {value.dtype} cannot be kept in a state")
@@ -176,14 +171,9 @@ def _capture(value, leaves, rollback=False):
         return {key: _capture(item, leaves, rollback) for key, item in value.items()}
     if isinstance(value, np.generic) and value.dtype in DTYPES:
         return _capture(value.item(), leaves)
-    if _is_object(value):
-        if getattr(kind, "immutable", False) is True:
-            _IMMUTABLE_OBJECTS.add(kind)
-            if rollback:
-                return value
-        else:
-            _OBJECTS.add(kind)
-        return capture(value, leaves, rollback)
+    if _is_object(value):                              # a class met the first time
+        (_IMMUTABLE_OBJECTS if getattr(kind, "immutable", False) is True else _OBJECTS).add(kind)
+        return _capture(value, leaves, rollback)
     raise StateError(f"a {kind.__name__} is not state data; declare the attribute in not_state of its class")
 
 
