@@ -66,6 +66,7 @@ from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFr
 from fmpy import calloc, free
 
 from .result import Result
+from .round import NativeRound
 
 __all__ = ["Component", "Connection", "System", "SimulationError", "Session", "Recorder", "MemoryRecorder",
            "cosimulate", "communication_points", "ORDERS", "COUPLINGS"]
@@ -276,6 +277,10 @@ class _Instance:
         (``obsfmuDoStepPlanned``, project FMUs only: :attr:`batched`); the FMI status."""
         return self.raw.step_planned(self.slave.component, t, h, self._plan_addresses[derivatives])
 
+    def plan_address(self, derivatives: bool) -> int:
+        """The address of the plan of :meth:`step` (``ObsfmuStepPlan``), for the round in one call."""
+        return self._plan_addresses[derivatives]
+
     @property
     def batched(self) -> bool:
         """The binary offers ``obsfmuDoStepPlanned`` (an obsfmu FMU, fmus/native/loader.c)."""
@@ -464,6 +469,8 @@ class _Stepper:
         self.feedthrough = [inst for inst in self.order if inst.feedthrough]
         #: instances whose binary steps in one call (set inputs, step, read outputs: obsfmuDoStepPlanned)
         self.batched = {inst for inst in self.order if getattr(inst, "batched", False)}
+        #: the whole Gauss-Seidel round in one call of a binary (fmus/round.py), when every instance can
+        self.native = None if jacobi else NativeRound.of(self.order, self.live, linear)
 
     def settle(self, passes: int) -> None:
         """Propagate outputs to inputs until direct-feedthrough chains are consistent."""
@@ -477,6 +484,14 @@ class _Stepper:
         self.now = self.live.copy()
 
     def round(self, t: float, h: float) -> None:
+        native = self.native
+        if native is not None and self.linear == native.linear:
+            status, failed = native.run(t, h, self.now, self.before, self.h_before)
+            if status > _WARNING:
+                _check(failed or self.order[0], self.logger,
+                       lambda: f"doStep(t={t:.9g}, h={h:.3g}) with its inputs", status)
+            self.before, self.now, self.h_before = native.before, native.now, h
+            return
         live, now, linear = self.live, self.now, self.linear
         if linear:
             slopes = (now - self.before) / self.h_before if self.before is not None else np.zeros_like(now)

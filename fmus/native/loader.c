@@ -327,6 +327,78 @@ __attribute__((visibility("default"))) fmi2Status obsfmuDoStepPlanned(
                                plan->nOutputs, plan->output);
 }
 
+/* One FMU of a co-simulation round (obsfmuRound): an instance of any obsfmu FMI 2.0 binary. */
+typedef struct {
+    fmi2Status (*step)(fmi2Component, fmi2Real, fmi2Real, const ObsfmuStepPlan *); /* its obsfmuDoStepPlanned */
+    fmi2Component component;
+    const ObsfmuStepPlan *plan;    /* its value and slope vectors are filled here; it writes its outputs into live */
+    const size_t *source;          /* per input of the plan: the output it is connected to (index in live) */
+    const unsigned char *stepped;  /* per input: that output's FMU steps earlier in the round */
+} ObsfmuRoundMember;
+
+/* The project master's Gauss-Seidel round (fmus/master.py, _Stepper.round), built once per run. */
+typedef struct {
+    size_t nMembers;
+    const ObsfmuRoundMember *member;  /* in the order they step */
+    size_t nOutputs;
+    const fmi2Real *live;   /* every output, as the members' steps leave them */
+    fmi2Real *now;          /* the outputs at the communication point t (written: those at t + h) */
+    fmi2Real *before;       /* those at the point before (written: those at t) */
+    fmi2Real *slope;        /* room for nOutputs slopes */
+    fmi2Real hBefore;       /* the step from `before` to `now`; 0: no history (written: h) */
+    int linear;             /* 1: inputs follow first-order extrapolation/interpolation; 0: held */
+} ObsfmuRound;
+
+/* obsfmu's extension for its own master (not part of FMI 2.0; docs/portability.md): one communication
+ * round of several obsfmu FMUs in one call.  Member by member: its inputs from the outputs (`now` when
+ * linear, else `live`), with linear coupling their slopes -- interpolated from t to t + h for an output
+ * stepped earlier in this round, (now - before) / hBefore otherwise -- then its obsfmuDoStepPlanned.
+ * The first status worse than fmi2Warning ends the round: it is returned and *failed names the member.
+ * A round that completes moves the history on (before <- now <- live, hBefore <- h).  This is exactly
+ * what the master's Python round computes, operation for operation (the tests compare bit for bit). */
+__attribute__((visibility("default"))) fmi2Status obsfmuRound(ObsfmuRound *round, fmi2Real t, fmi2Real h,
+                                                              size_t *failed)
+{
+    if (round == NULL || failed == NULL || !(h > 0.0)) return fmi2Error;
+    *failed = round->nMembers;
+    const size_t n = round->nOutputs;
+    const fmi2Real *live = round->live, *now = round->now, *before = round->before;
+    fmi2Real *slope = round->slope;
+    for (size_t k = 0; k < round->nMembers; k++) {           /* every link within the outputs */
+        const ObsfmuRoundMember *m = &round->member[k];
+        if (m->step == NULL || m->plan == NULL || (m->plan->nvr > 0 && (m->source == NULL || m->stepped == NULL))) {
+            *failed = k;
+            return fmi2Error;
+        }
+        for (size_t i = 0; i < m->plan->nvr; i++)
+            if (m->source[i] >= n) { *failed = k; return fmi2Error; }
+    }
+    if (round->linear)
+        for (size_t i = 0; i < n; i++) slope[i] = round->hBefore > 0.0 ? (now[i] - before[i]) / round->hBefore : 0.0;
+    const fmi2Real *source = round->linear ? now : live;
+    fmi2Status worst = fmi2OK;
+    for (size_t k = 0; k < round->nMembers; k++) {
+        const ObsfmuRoundMember *m = &round->member[k];
+        fmi2Real *value = (fmi2Real *)m->plan->value, *value_slope = (fmi2Real *)m->plan->slope;
+        for (size_t i = 0; i < m->plan->nvr; i++) {
+            const size_t s = m->source[i];
+            value[i] = source[s];
+            if (value_slope != NULL)
+                value_slope[i] = !round->linear ? 0.0 : m->stepped[i] ? (live[s] - value[i]) / h : slope[s];
+        }
+        fmi2Status status = m->step(m->component, t, h, m->plan);
+        if (status > fmi2Warning) {
+            *failed = k;
+            return status;
+        }
+        if (status > worst) worst = status;
+    }
+    memcpy(round->before, now, n * sizeof(fmi2Real));
+    memcpy(round->now, live, n * sizeof(fmi2Real));
+    round->hBefore = h;
+    return worst;
+}
+
 fmi2Status fmi2CancelStep(fmi2Component component)
 {
     ENTER(fmi2CancelStep, NO_STATE) /* steps are synchronous: never in stepInProgress */
