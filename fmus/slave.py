@@ -229,7 +229,7 @@ class _BatchPlan:
     reads (``outputs``) after it; where they go among the FMU's inputs and outputs."""
 
     __slots__ = ("input_vrs", "output_vrs", "given_data", "values", "slopes", "outputs", "derivatives", "positions",
-                 "given", "held", "common", "in_order", "output_order")
+                 "given", "held", "common", "in_order", "records_whole", "output_order")
 
     def __init__(self, input_vrs, derivatives, output_vrs, positions: list[int], input_slices: dict[str, slice],
                  output_positions: list[int], output_count: int):
@@ -249,6 +249,8 @@ class _BatchPlan:
         # the plan's part of a common step: slopes given, every port given whole or not at all
         self.common = self.derivatives and \
             all(covered[port] in (0, where.stop - where.start) for port, where in input_slices.items())
+        # a common step of this plan leaves every input at the end of its slope, in the one vector `end`
+        self.records_whole = self.common and self.in_order and bool(positions)
         # positions in the flat outputs; None: all of them in declaration order (nothing to permute)
         self.output_order = None if list(output_positions) == list(range(output_count)) else \
             np.array(output_positions, dtype=np.intp)
@@ -289,7 +291,7 @@ class BlockSlave(Fmi2Slave):
         self._feedthrough = True                         # the block's, once it exists
         self._bad: dict[str, float] = {}                 # input (or der(input)) element -> refused value
         self._snapshot: tuple[dict, Leaves] | None = None   # the block's state now, checked (rollback point)
-        self._last_inputs: dict[str, tuple[np.ndarray, float]] = {}
+        self._last_inputs = {}                          # port -> (its value, the time it belongs to)
         self._derivatives: dict[str, np.ndarray] = {}  # first input derivatives for the next step
         self._derivative_store = {p.name: np.zeros(p.size) for p in definition.inputs}  # reused (one per port)
         self._batch: _BatchPlan | None = None          # the buffers of step_batched (native binary)
@@ -650,6 +652,19 @@ class BlockSlave(Fmi2Slave):
                 for name in self._element_names[port]:
                     self._bad.pop(f"der({name})", None)
 
+    @property
+    def _last_inputs(self) -> dict[str, tuple[np.ndarray, float]]:
+        """Each input's last recorded value and the time it belongs to (:meth:`_remember_inputs`)."""
+        if self._pending_record is not None:            # the end vector of a batched step: split it now
+            end, end_time = self._pending_record
+            self._pending_record = None
+            self._recorded = {port: (end[where], end_time) for port, where in self._input_slices.items()}
+        return self._recorded
+
+    @_last_inputs.setter
+    def _last_inputs(self, record: dict[str, tuple[np.ndarray, float]]) -> None:
+        self._pending_record, self._recorded = None, record
+
     def _remember_inputs(self, time: float, step: float = 0.0, ends: dict[str, np.ndarray] | None = None):
         """Record each input with the time it belongs to, after a step of length ``step``.
 
@@ -818,7 +833,11 @@ class BlockSlave(Fmi2Slave):
         staged = plan if plan.output_order is None else None
         if not self._checked_step(t, h, block, segments, ends, staged):
             return False
-        self._remember_inputs(t, h, ends)                   # ends: views of end, never written
+        if plan.records_whole:          # every input followed its slope to end: record the vector, split if read
+            flat[:] = end
+            self._pending_record, self._derivatives = (end, t + h), {}
+        else:
+            self._remember_inputs(t, h, ends)               # ends: views of end, never written
         if staged is None:
             self._write_outputs(plan, self._outputs_cache)
         return True
