@@ -229,7 +229,7 @@ class _BatchPlan:
     reads (``outputs``) after it; where they go among the FMU's inputs and outputs."""
 
     __slots__ = ("input_vrs", "output_vrs", "given_data", "values", "slopes", "outputs", "derivatives", "positions",
-                 "given", "held", "common", "in_order", "records_whole", "output_order")
+                 "given", "held", "common", "in_order", "output_order")
 
     def __init__(self, input_vrs, derivatives, output_vrs, positions: list[int], input_slices: dict[str, slice],
                  output_positions: list[int], output_count: int):
@@ -249,8 +249,6 @@ class _BatchPlan:
         # the plan's part of a common step: slopes given, every port given whole or not at all
         self.common = self.derivatives and \
             all(covered[port] in (0, where.stop - where.start) for port, where in input_slices.items())
-        # a common step of this plan leaves every input at the end of its slope, in the one vector `end`
-        self.records_whole = self.common and self.in_order and bool(positions)
         # positions in the flat outputs; None: all of them in declaration order (nothing to permute)
         self.output_order = None if list(output_positions) == list(range(output_count)) else \
             np.array(output_positions, dtype=np.intp)
@@ -655,10 +653,12 @@ class BlockSlave(Fmi2Slave):
     @property
     def _last_inputs(self) -> dict[str, tuple[np.ndarray, float]]:
         """Each input's last recorded value and the time it belongs to (:meth:`_remember_inputs`)."""
-        if self._pending_record is not None:            # the end vector of a batched step: split it now
-            end, end_time = self._pending_record
-            self._pending_record = None
-            self._recorded = {port: (end[where], end_time) for port, where in self._input_slices.items()}
+        if self._pending_record is not None:    # a batched step's (step_batched): as _remember_inputs records
+            plan, start, end, time, end_time, at_end = self._pending_record
+            self._pending_record, slices = None, self._input_slices
+            self._recorded = {port: (end[where], end_time) for port, where in slices.items()}
+            for port in plan.held:
+                self._recorded[port] = (start[slices[port]], end_time if port in at_end else time)
         return self._recorded
 
     @_last_inputs.setter
@@ -833,11 +833,15 @@ class BlockSlave(Fmi2Slave):
         staged = plan if plan.output_order is None else None
         if not self._checked_step(t, h, block, segments, ends, staged):
             return False
-        if plan.records_whole:          # every input followed its slope to end: record the vector, split if read
-            flat[:] = end
-            self._pending_record, self._derivatives = (end, t + h), {}
+        if plan.given:     # the inputs at the end (the held ones as they were): one vector, split if read
+            if plan.in_order:
+                flat[:] = end
+            else:
+                flat[plan.positions] = end[plan.positions]
+            at_end = tuple(port for port in plan.held if self._modes[port][0] == _INTERPOLATE)
+            self._pending_record, self._derivatives = (plan, start, end, t, t + h, at_end), {}
         else:
-            self._remember_inputs(t, h, ends)               # ends: views of end, never written
+            self._remember_inputs(t, h, ends)
         if staged is None:
             self._write_outputs(plan, self._outputs_cache)
         return True

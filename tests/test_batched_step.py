@@ -16,6 +16,7 @@ import ctypes
 
 import numpy as np
 import pytest
+from fmpy import read_model_description
 
 from faults_support import DISCARD, ERROR, OK, Probe, split_state
 
@@ -90,16 +91,23 @@ def pairs(kind_fmus):
 
 @pytest.mark.parametrize("kind", KINDS_WITH_INPUTS)
 @pytest.mark.parametrize("variant", ["all inputs", "reversed order", "first input only", "no derivatives",
-                                     "derivatives, then none"])   # the inputs recorded, then read by a step
+                                     "derivatives, then none",     # the inputs recorded, then read by a step
+                                     "first input only, the others interpolated"])
 @pytest.mark.parametrize("form", ["batched", "planned"])
 def test_the_batched_step_is_bit_for_bit_the_four_calls(pairs, kind, variant, form):
     step, path = pairs[kind]
-    separate, together = Probe(path, "separate"), Probe(path, "together")
+    start = {}
+    if variant == "first input only, the others interpolated":     # recorded at the step end, not its start
+        variables = read_model_description(str(path)).modelVariables
+        first, *others = [v.name.split("[")[0] for v in variables if v.causality == "input"]
+        modes = {v.name for v in variables} & {f"{port}_interpolation" for port in others if port != first}
+        start = dict.fromkeys(modes, 2)
+    separate, together = Probe(path, "separate", start), Probe(path, "together", start)
     try:
         names = separate.names("input")
         if variant == "reversed order":
             names = names[::-1]
-        elif variant == "first input only":
+        elif variant.startswith("first input only"):
             names = names[:1]
         outputs = np.full(len(together.names("output")), np.nan)
         for k in range(STEPS):
