@@ -203,6 +203,93 @@ static PyObject *create_instance(Component *c)
     return instance;
 }
 
+/* ------------------------------------------------------------------ the slave's test of numbers, in C */
+
+/* Add the squares of the numbers of `item` -- a Python float, or a C-contiguous buffer of float64 or
+ * complex128 (a numpy array) -- to *sum.  0: `item` is neither (no Python error is left set). */
+static int add_squares(PyObject *item, double *sum)
+{
+    if (PyFloat_CheckExact(item)) {
+        double v = PyFloat_AS_DOUBLE(item);
+        *sum += v * v;
+        return 1;
+    }
+    Py_buffer view;
+    if (PyObject_GetBuffer(item, &view, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) != 0) {
+        PyErr_Clear();
+        return 0;
+    }
+    int known = view.format != NULL && (strcmp(view.format, "d") == 0 || strcmp(view.format, "Zd") == 0);
+    if (known) {                                  /* |re + i im|^2 = re^2 + im^2: a complex is two doubles */
+        const double *x = view.buf;
+        double s = 0.0;
+        for (Py_ssize_t i = 0, n = view.len / (Py_ssize_t)sizeof(double); i < n; i++) s += x[i] * x[i];
+        *sum += s;
+    }
+    PyBuffer_Release(&view);
+    return known;
+}
+
+/* slave.native_within(bound, vector, arrays, previous, floats): True when every number of `vector` (one array,
+ * or None), of the arrays of the list `arrays` (or None) less those that are the very object at the same place
+ * in `previous` (a list of the same length, or None), and of the list `floats` (or None) is finite and at most
+ * `bound` in magnitude, as their sum of squares shows; False when that sum does not show it (a number that is
+ * not finite, or large ones), None when an item is of another kind or `previous` of another length.  Only True
+ * decides: the caller tests anything else number by number (fmus/slave.py; the same test as
+ * observers.state.within_bound, without concatenating the arrays: issue 14). */
+static PyObject *native_within(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    (void)self;
+    if (nargs != 5 || !PyFloat_CheckExact(args[0])) {
+        PyErr_SetString(PyExc_TypeError, "native_within(bound: float, vector, arrays, previous, floats)");
+        return NULL;
+    }
+    double bound = PyFloat_AS_DOUBLE(args[0]), sum = 0.0;
+    PyObject *vector = args[1], *arrays = args[2], *previous = args[3], *floats = args[4];
+    if (vector != Py_None && !add_squares(vector, &sum)) Py_RETURN_NONE;
+    if (arrays != Py_None) {
+        if (!PyList_CheckExact(arrays)) Py_RETURN_NONE;
+        Py_ssize_t n = PyList_GET_SIZE(arrays);
+        int skip = previous != Py_None && PyList_CheckExact(previous) && PyList_GET_SIZE(previous) > 0;
+        if (previous != Py_None && !PyList_CheckExact(previous)) Py_RETURN_NONE;
+        if (skip && PyList_GET_SIZE(previous) != n) Py_RETURN_NONE;
+        for (Py_ssize_t i = 0; i < n; i++) {
+            PyObject *item = PyList_GET_ITEM(arrays, i);
+            if (skip && item == PyList_GET_ITEM(previous, i)) continue;   /* not rebound: tested before */
+            if (!add_squares(item, &sum)) Py_RETURN_NONE;
+        }
+    }
+    if (floats != Py_None) {
+        if (!PyList_CheckExact(floats)) Py_RETURN_NONE;
+        for (Py_ssize_t i = 0, n = PyList_GET_SIZE(floats); i < n; i++)
+            if (!add_squares(PyList_GET_ITEM(floats, i), &sum)) Py_RETURN_NONE;
+    }
+    return PyBool_FromLong(sum <= bound * bound && sum < HUGE_VAL);  /* false for NaN and inf */
+}
+
+/* native_within as a Python function, for the slave instance (attribute `native_within`, removed when the
+ * instance is freed).  Its method definition is on the heap, never freed: Python reads it when the function
+ * object is deallocated, which may be after this library is unloaded (a reference cycle); a static one would
+ * be unmapped by then. */
+static PyObject *native_within_function(void)
+{
+    static PyMethodDef *definition = NULL;
+    if (definition == NULL) {
+        definition = calloc(1, sizeof *definition);
+        char *name = copy_string("native_within");
+        if (definition == NULL || name == NULL) {
+            free(definition);
+            free(name);
+            definition = NULL;
+            return PyErr_NoMemory();
+        }
+        definition->ml_name = name;
+        definition->ml_meth = (PyCFunction)(void (*)(void))native_within;
+        definition->ml_flags = METH_FASTCALL;
+    }
+    return PyCFunction_New(definition, NULL);
+}
+
 /* The slave class of the FMU, from its own bundled package (resources/obsfmu_bootstrap.py). */
 static PyObject *slave_class(Component *c, const char *record)
 {
@@ -237,6 +324,7 @@ static void free_component(Component *c)
 {
     if (c == NULL) return;
     drop_batch(&c->batch);
+    if (c->instance && PyObject_DelAttrString(c->instance, "native_within") != 0) PyErr_Clear();  /* points here */
     Py_XDECREF(c->instance);
     Py_XDECREF(c->refusal);
     Py_XDECREF(c->slave_class);
@@ -300,6 +388,9 @@ static fmi2Component instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2
             Py_CLEAR(c->refusal);
         }
         c->instance = create_instance(c);
+        PyObject *within = c->instance ? native_within_function() : NULL;
+        if (within == NULL || PyObject_SetAttrString(c->instance, "native_within", within) != 0) PyErr_Clear();
+        Py_XDECREF(within);
     }
     if (c->instance == NULL) {
         python_error(c, "fmi2Instantiate");
