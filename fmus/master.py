@@ -660,9 +660,10 @@ class Session:
         for inst in self.instances.values():
             try:
                 if getattr(inst, "instantiated", False):
-                    inst.slave.freeInstance()
                     inst.instantiated = False
-                inst.slave.freeLibrary()
+                    inst.slave.freeInstance()         # and unloads the library (fmpy), once
+                else:
+                    inst.slave.freeLibrary()
             except Exception:
                 pass
         self.instances = {}

@@ -78,3 +78,19 @@ def test_the_extract_cache_skips_entries_another_process_removed(ship_fmus, tmp_
     assert (path / "modelDescription.xml").is_file()
     kept = sorted(entry.name for entry in cache.iterdir() if entry.is_dir() and not entry.is_symlink())
     assert kept == sorted([path.name, "old2", ".extracting.y"])
+
+
+@pytest.mark.parametrize("fmi_version", [2, 3])
+def test_closing_a_session_leaves_another_of_the_same_fmus_running(build_dir, fmi_version):
+    """Each FMU library is loaded once per session and unloaded once when it closes: closing one session
+    must not unload the binaries another one still steps (fmpy's freeInstance unloads them already; a
+    second unload crashed the process at the next call of the other session)."""
+    from fmus.master import Session
+    from fmus.scenarios import ensure_fmus
+    fmus = ensure_fmus(SCENARIO, build_dir, fmi_version=fmi_version)
+    with Session(ship_system(fmus), echo_log=False) as first:
+        alone = first.run(0.005, 1e-3)
+        with Session(ship_system(fmus), echo_log=False) as second:
+            second.run(0.005, 1e-3)
+        again = first.run(0.005, 1e-3)
+    np.testing.assert_array_equal(again.values, alone.values)

@@ -22,16 +22,39 @@ from observers.state import Leaves, within, within_bound
 BOUND = 1e100
 
 
+def ship_session(ship_fmus) -> Session:
+    scenario = get("ship")
+    components = [Component(i, ship_fmus[m], dict(s)) for i, m, s in scenario.components]
+    return Session(System(components, list(scenario.connections)), echo_log=False)
+
+
+def holders() -> dict[int, object]:
+    """The objects of this process that hold a ``native_within`` of their own: the live slave instances."""
+    return {id(o): o for o in gc.get_objects()
+            if isinstance(getattr(o, "__dict__", None), dict) and "native_within" in o.__dict__}
+
+
 @pytest.fixture(scope="module")
 def native_within(ship_fmus):
     """``native_within`` of a live slave instance of an FMU loaded in this process (through fmpy)."""
-    scenario = get("ship")
-    components = [Component(i, ship_fmus[m], dict(s)) for i, m, s in scenario.components]
-    with Session(System(components, list(scenario.connections)), echo_log=False) as session:
+    with ship_session(ship_fmus) as session:
         session.run(0.002, 1e-3)
-        function = next(o.__dict__["native_within"] for o in gc.get_objects()
-                        if isinstance(getattr(o, "__dict__", None), dict) and "native_within" in o.__dict__)
-        yield function
+        yield next(iter(holders().values())).native_within
+
+
+def test_every_live_instance_has_it_and_a_freed_one_has_not(native_within, ship_fmus):
+    """The bridge gives it to each instance, also those fmi2Reset makes, and takes it back when it lets
+    an instance go: it points into the binary, which may be unloaded before a cycle is collected."""
+    before = holders()
+    with ship_session(ship_fmus) as session:
+        for _ in range(3):                       # fmi2Reset before the second and third run: new instances
+            session.run(0.002, 1e-3)
+        gc.collect()
+        new = [o for key, o in holders().items() if key not in before]
+        assert sorted(o.instance_name for o in new) == ["controller", "observer", "plant"]
+    del new
+    gc.collect()
+    assert holders().keys() <= before.keys()
 
 
 def reference(vector, arrays, previous, floats) -> bool:

@@ -126,7 +126,8 @@ class _Facade:
         owner.inputs.reset()
 
     def freeInstance(self):
-        self._fmu.fmi3FreeInstance(self._fmu.component)
+        """Free the instance and unload the library, as fmpy's ``FMU2Slave.freeInstance`` does."""
+        self._fmu.freeInstance()
 
     def freeLibrary(self):
         self._fmu.freeLibrary()

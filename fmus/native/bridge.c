@@ -290,6 +290,25 @@ static PyObject *native_within_function(void)
     return PyCFunction_New(definition, NULL);
 }
 
+/* A new slave instance with its native_within (a slave without it still works: it tests in numpy). */
+static PyObject *new_instance(Component *c)
+{
+    PyObject *instance = create_instance(c);
+    PyObject *within = instance ? native_within_function() : NULL;
+    if (within == NULL || PyObject_SetAttrString(instance, "native_within", within) != 0) PyErr_Clear();
+    Py_XDECREF(within);
+    return instance;
+}
+
+/* Let go of a slave instance, first of its native_within, which points into this library: the instance may
+ * live on in a reference cycle after the library is unloaded. */
+static void release_instance(PyObject *instance)
+{
+    if (instance == NULL) return;
+    if (PyObject_DelAttrString(instance, "native_within") != 0) PyErr_Clear();
+    Py_DECREF(instance);
+}
+
 /* The slave class of the FMU, from its own bundled package (resources/obsfmu_bootstrap.py). */
 static PyObject *slave_class(Component *c, const char *record)
 {
@@ -324,8 +343,7 @@ static void free_component(Component *c)
 {
     if (c == NULL) return;
     drop_batch(&c->batch);
-    if (c->instance && PyObject_DelAttrString(c->instance, "native_within") != 0) PyErr_Clear();  /* points here */
-    Py_XDECREF(c->instance);
+    release_instance(c->instance);
     Py_XDECREF(c->refusal);
     Py_XDECREF(c->slave_class);
     Py_XDECREF(c->strings);
@@ -387,10 +405,7 @@ static fmi2Component instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2
             PyErr_Clear();
             Py_CLEAR(c->refusal);
         }
-        c->instance = create_instance(c);
-        PyObject *within = c->instance ? native_within_function() : NULL;
-        if (within == NULL || PyObject_SetAttrString(c->instance, "native_within", within) != 0) PyErr_Clear();
-        Py_XDECREF(within);
+        c->instance = new_instance(c);
     }
     if (c->instance == NULL) {
         python_error(c, "fmi2Instantiate");
@@ -449,12 +464,12 @@ static fmi2Status reset(fmi2Component component)
 {
     COMPONENT
     WITH_GIL({
-        PyObject *fresh = create_instance(c);
+        PyObject *fresh = new_instance(c);
         if (fresh == NULL) {
             status_ = python_error(c, "fmi2Reset");
         } else {
             drop_batch(&c->batch);
-            Py_DECREF(c->instance);
+            release_instance(c->instance);
             c->instance = fresh;
             status_ = drain_log(c);
         }
