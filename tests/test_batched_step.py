@@ -202,6 +202,8 @@ def test_the_state_machine_and_the_communication_point_are_checked(kind_fmus):
         mark = len(probe.log)
         assert call_batched(probe, step, names, *signal(0, step, len(names)), outputs) == ERROR
         assert "obsfmuDoStepBatched is not allowed in state initializationMode" in probe.messages(mark)
+        assert call_batched(probe, step, names, *signal(0, step, len(names)), outputs, "planned") == ERROR
+        assert "obsfmuDoStepPlanned is not allowed in state initializationMode" in probe.messages(mark)
         probe.slave.exitInitializationMode()
         probe.t = 1.0                                              # not the FMU's time
         assert call_batched(probe, step, names, *signal(0, step, len(names)), outputs) == ERROR

@@ -282,6 +282,25 @@ fmi2Status fmi2DoStep(fmi2Component component, fmi2Real currentCommunicationPoin
     return after(c, status);
 }
 
+/* The one-call step of an instance whose state allows it, with fmi2DoStep's checks and transitions;
+ * `call` names the entry point in messages. */
+static fmi2Status batched_step(Instance *c, const char *call, fmi2Real t, fmi2Real h, const fmi2ValueReference vr[],
+                               size_t nvr, const fmi2Real value[], const fmi2Real slope[],
+                               const fmi2ValueReference outputVr[], size_t nOutputs, fmi2Real output[])
+{
+    if (nvr > 0 && (vr == NULL || value == NULL))
+        return refuse(c, "%s: NULL value references or values for %zu variables", call, nvr);
+    if (nOutputs > 0 && (outputVr == NULL || output == NULL))
+        return refuse(c, "%s: NULL value references or values for %zu variables", call, nOutputs);
+    if (check_step(c, call, t, h) != fmi2OK) return fmi2Error;
+    int stepped = 0;
+    fmi2Status status = c->bridge->doStepBatched(c->inner, t, h, vr, nvr, value, slope, outputVr, nOutputs, output,
+                                                 &stepped);
+    if (stepped) c->time = t + h;
+    else if (status == fmi2Discard) c->state = STEP_FAILED;
+    return after(c, status);
+}
+
 /* obsfmu's extension for its own master (not part of FMI 2.0; docs/portability.md): one communication
  * step in one call, exactly
  *     fmi2SetReal(vr, value); [fmi2SetRealInputDerivatives(vr, 1, slope) unless slope == NULL;]
@@ -294,15 +313,7 @@ __attribute__((visibility("default"))) fmi2Status obsfmuDoStepBatched(
     fmi2Real output[])
 {
     ENTER(obsfmuDoStepBatched, STEP_COMPLETE)
-    ARRAYS(obsfmuDoStepBatched, vr, nvr, value)
-    ARRAYS(obsfmuDoStepBatched, outputVr, nOutputs, output)
-    if (check_step(c, "obsfmuDoStepBatched", t, h) != fmi2OK) return fmi2Error;
-    int stepped = 0;
-    fmi2Status status = c->bridge->doStepBatched(c->inner, t, h, vr, nvr, value, slope, outputVr, nOutputs, output,
-                                                 &stepped);
-    if (stepped) c->time = t + h;
-    else if (status == fmi2Discard) c->state = STEP_FAILED;
-    return after(c, status);
+    return batched_step(c, "obsfmuDoStepBatched", t, h, vr, nvr, value, slope, outputVr, nOutputs, output);
 }
 
 /* The arguments of obsfmuDoStepBatched after t and h, in one struct the caller builds once. */
@@ -323,8 +334,8 @@ __attribute__((visibility("default"))) fmi2Status obsfmuDoStepPlanned(
 {
     ENTER(obsfmuDoStepPlanned, STEP_COMPLETE)
     if (plan == NULL) return refuse(c, "obsfmuDoStepPlanned: NULL plan");
-    return obsfmuDoStepBatched(component, t, h, plan->vr, plan->nvr, plan->value, plan->slope, plan->outputVr,
-                               plan->nOutputs, plan->output);
+    return batched_step(c, "obsfmuDoStepPlanned", t, h, plan->vr, plan->nvr, plan->value, plan->slope, plan->outputVr,
+                        plan->nOutputs, plan->output);
 }
 
 /* One FMU of a co-simulation round (obsfmuRound): an instance of any obsfmu FMI 2.0 binary. */
