@@ -803,7 +803,10 @@ static fmi2Status do_step_batched(fmi2Component component, fmi2Real t, fmi2Real 
             if (nvr && slope) memcpy(b->buffers[1].buf, slope, nvr * sizeof(double));
             PyObject *time = PyFloat_FromDouble(t);
             PyObject *size = PyFloat_FromDouble(h);
-            PyObject *result = time && size ? PyObject_CallFunctionObjArgs(b->step, time, size, NULL) : NULL;
+            PyObject *args[2];                        /* (no braces: this is a macro argument) */
+            args[0] = time;
+            args[1] = size;
+            PyObject *result = time && size ? PyObject_Vectorcall(b->step, args, 2, NULL) : NULL;
             Py_XDECREF(time);
             Py_XDECREF(size);
             if (result == NULL) {
