@@ -14,7 +14,7 @@ adaptive master's restore, the initial slope probe) is noticed and the buffers r
 
 from __future__ import annotations
 
-from ctypes import PYFUNCTYPE, Structure, addressof, c_double, c_int, c_size_t, c_ubyte, c_void_p, cast
+from ctypes import PYFUNCTYPE, Structure, addressof, c_double, c_int, c_size_t, c_void_p, cast
 
 import numpy as np
 

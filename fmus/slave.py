@@ -746,11 +746,11 @@ class BlockSlave(Fmi2Slave):
                 tested = within_bound(leaves, bound, checked, [*ends.values(), *outputs.values()])
             else:
                 self._write_outputs(plan, outputs)
-                native = self.native_within     # in C, without concatenating; True only: numpy decides the rest
-                tested = (native is not None and native(bound, plan.outputs, *(
-                    (None, None, None) if leaves is None else
-                    (leaves.arrays, checked and checked.arrays, leaves.floats))) is True) or \
-                    within(plan.outputs, bound) and within_bound(leaves, bound, checked)
+                native = self.native_within       # the binary's test: its True decides, numpy decides the rest
+                state = (None, None, None) if leaves is None else (leaves.arrays, checked and checked.arrays,
+                                                                   leaves.floats)
+                tested = (native is not None and native(bound, plan.outputs, *state) is True) \
+                    or (within(plan.outputs, bound) and within_bound(leaves, bound, checked))
             fault = None if tested else self._fault(tree, leaves, checked, ends, outputs, None)
         except BaseException as exc:            # KeyboardInterrupt too: roll back, then let it through
             if before is not None:
