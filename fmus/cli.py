@@ -377,7 +377,7 @@ def cmd_report(args) -> int:
     out = check_directory("--out", args.out)
     build_dir = check_directory("--build-dir", args.build_dir, writable=False)
     missing = [name for name in SCENARIOS if not report.has_run(out, name)]
-    return _run_and_report(out, build_dir, missing)
+    return _run_and_report(out, build_dir, missing, args.jobs)
 
 
 # ----------------------------------------------------------------------------- arguments
@@ -454,8 +454,12 @@ def _configure_all(parser) -> None:
                              "(default: results)")
     parser.add_argument("--build-dir", default=str(DEFAULT_BUILD), metavar="DIR",
                         help="directory for the FMUs (default: build)")
+    _add_jobs_argument(parser, "the scenarios")
+
+
+def _add_jobs_argument(parser, what: str) -> None:
     parser.add_argument("--jobs", type=_positive_int, default=_cpus(), metavar="N",
-                        help="run the scenarios in N worker processes, the longest first (default: the number "
+                        help=f"run {what} in N worker processes, the longest first (default: the number "
                              "of CPUs, here %(default)s; 1: one after the other in this process); same files, "
                              "summaries in the same order")
 
@@ -466,6 +470,7 @@ def _configure_report(parser) -> None:
                              "there are run first) and of report.html (default: results)")
     parser.add_argument("--build-dir", default=str(DEFAULT_BUILD), metavar="DIR",
                         help="directory of the FMUs (default: build)")
+    _add_jobs_argument(parser, "the scenarios without results")
 
 
 register("build", "build FMUs (every scenario's, or those of one TOML design) and validate them",

@@ -106,6 +106,7 @@ BAD = {  # id: (argv with {B} = build dir, {T} = tmp dir, {RO} = unwritable dir;
     "all jobs words": (["all", "--jobs", "two", "--out", "{T}/r"], "argument --jobs: 'two' is not an integer"),
     "export out a file": (["export", "ship", "--format", "ssp", "--out", "{T}/a-file"], "--out {T}/a-file: is a file"),
     "report out a file": (["report", "--out", "{T}/a-file"], "--out {T}/a-file: is a file, expected a directory"),
+    "report jobs 0": (["report", "--jobs", "0", "--out", "{T}/r"], "argument --jobs: must be at least 1, got 0"),
     "unknown scenario": (["run", "nonesuch"], "unknown scenario 'nonesuch'; available: discrete-gpebo"),
     "unknown format": (["export", "ship", "--format", "fmi", "--out", "{T}/x"], "argument --format: invalid choice"),
 }
@@ -276,6 +277,14 @@ def test_all_in_two_worker_processes_writes_and_prints_what_one_process_does(bui
             assert _record(one / name) == _record(two / name), name
         elif not name.endswith(".svg"):      # SVG element ids are random in every run
             assert (one / name).read_bytes() == (two / name).read_bytes(), name
+
+
+def test_report_runs_the_missing_scenarios_in_its_jobs(tmp_path, monkeypatch):
+    """``obsfmu report --jobs N`` hands the scenarios without results to the runner of ``obsfmu all --jobs N``."""
+    calls = []
+    monkeypatch.setattr(cli, "_run_and_report", lambda out, build_dir, names, jobs=1: calls.append((names, jobs)) or 0)
+    assert cli.main(["report", "--out", str(tmp_path / "r"), "--build-dir", str(tmp_path / "b"), "--jobs", "2"]) == 0
+    assert calls == [(list(SCENARIOS), 2)]
 
 
 def test_a_failing_scenario_is_named_and_the_others_still_finish(build_dir, tmp_path, capsys):
