@@ -41,7 +41,10 @@ the binary through ctypes functions with fixed argument types, on numpy
 buffers allocated once per run: inputs are gathered with one index array per
 instance and outputs are written by the FMU directly into the shared output
 vector -- no Python list, no per-call marshalling (fmpy's wrappers cost
-3-9 us per call, a direct call 0.1 us plus what the FMU does).
+3-9 us per call, a direct call 0.1 us plus what the FMU does).  An obsfmu
+FMU does the four in one call (``obsfmuDoStepPlanned``), and when every FMU
+of a Gauss-Seidel run is one, the whole round is one call of a binary
+(``obsfmuRound``, :mod:`fmus.round`): the same arithmetic in C.
 """
 
 from __future__ import annotations
