@@ -250,8 +250,8 @@ static PyObject *native_within(PyObject *self, PyObject *const *args, Py_ssize_t
     if (arrays != Py_None) {
         if (!PyList_CheckExact(arrays)) Py_RETURN_NONE;
         Py_ssize_t n = PyList_GET_SIZE(arrays);
-        int skip = previous != Py_None && PyList_CheckExact(previous) && PyList_GET_SIZE(previous) > 0;
         if (previous != Py_None && !PyList_CheckExact(previous)) Py_RETURN_NONE;
+        int skip = previous != Py_None && PyList_GET_SIZE(previous) > 0;
         if (skip && PyList_GET_SIZE(previous) != n) Py_RETURN_NONE;
         for (Py_ssize_t i = 0; i < n; i++) {
             PyObject *item = PyList_GET_ITEM(arrays, i);

@@ -168,15 +168,16 @@ fmi2Status fmi2Reset(fmi2Component component)
 
 /* ---- values */
 
-#define ARRAYS(call, vr, nvr, value)                                                                   \
+/* `name`: the entry point, a string */
+#define ARRAYS(name, vr, nvr, value)                                                                   \
     if ((nvr) > 0 && ((vr) == NULL || (value) == NULL))                                                \
-        return refuse(c, "%s: NULL value references or values for %zu variables", #call, (size_t)(nvr));
+        return refuse(c, "%s: NULL value references or values for %zu variables", name, (size_t)(nvr));
 
 #define GETTER(call, member, type)                                                                     \
     fmi2Status call(fmi2Component component, const fmi2ValueReference vr[], size_t nvr, type value[])  \
     {                                                                                                  \
         ENTER(call, READABLE)                                                                          \
-        ARRAYS(call, vr, nvr, value)                                                                   \
+        ARRAYS(#call, vr, nvr, value)                                                                  \
         return after(c, c->bridge->member(c->inner, vr, nvr, value));                                 \
     }
 
@@ -184,7 +185,7 @@ fmi2Status fmi2Reset(fmi2Component component)
     fmi2Status call(fmi2Component component, const fmi2ValueReference vr[], size_t nvr, const type value[]) \
     {                                                                                                  \
         ENTER(call, SETTABLE)                                                                          \
-        ARRAYS(call, vr, nvr, value)                                                                   \
+        ARRAYS(#call, vr, nvr, value)                                                                  \
         return after(c, c->bridge->member(c->inner, vr, nvr, value));                                 \
     }
 
@@ -251,7 +252,7 @@ fmi2Status fmi2SetRealInputDerivatives(fmi2Component component, const fmi2ValueR
                                        const fmi2Integer order[], const fmi2Real value[])
 {
     ENTER(fmi2SetRealInputDerivatives, SETTABLE)
-    ARRAYS(fmi2SetRealInputDerivatives, vr, nvr, value)
+    ARRAYS("fmi2SetRealInputDerivatives", vr, nvr, value)
     for (size_t i = 0; i < nvr; i++) {
         if (order == NULL || order[i] != 1)
             return refuse(c, "fmi2SetRealInputDerivatives: derivative of order %d for value reference %u: only "
@@ -288,10 +289,8 @@ static fmi2Status batched_step(Instance *c, const char *call, fmi2Real t, fmi2Re
                                size_t nvr, const fmi2Real value[], const fmi2Real slope[],
                                const fmi2ValueReference outputVr[], size_t nOutputs, fmi2Real output[])
 {
-    if (nvr > 0 && (vr == NULL || value == NULL))
-        return refuse(c, "%s: NULL value references or values for %zu variables", call, nvr);
-    if (nOutputs > 0 && (outputVr == NULL || output == NULL))
-        return refuse(c, "%s: NULL value references or values for %zu variables", call, nOutputs);
+    ARRAYS(call, vr, nvr, value)
+    ARRAYS(call, outputVr, nOutputs, output)
     if (check_step(c, call, t, h) != fmi2OK) return fmi2Error;
     int stepped = 0;
     fmi2Status status = c->bridge->doStepBatched(c->inner, t, h, vr, nvr, value, slope, outputVr, nOutputs, output,
