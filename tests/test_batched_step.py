@@ -213,3 +213,18 @@ def test_the_state_machine_and_the_communication_point_are_checked(kind_fmus):
         assert call_batched(probe, step, names, *signal(0, step, len(names)), outputs) == OK, probe.messages(mark)
     finally:
         probe.free()
+
+
+def test_null_arrays_are_an_error_that_changes_nothing(observer):
+    """A caller that gives counts without arrays is refused by name, in both forms, before anything moves."""
+    probe, step = observer
+    before, mark = probe.state_bytes(), len(probe.log)
+    outputs = np.zeros(len(probe.names("output")))
+    out_vr = np.array([probe.vr(n) for n in probe.names("output")], dtype=np.uint32)
+    assert batched(probe)(probe.slave.component, probe.t, step, None, 1, None, None, out_vr.ctypes.data,
+                          len(out_vr), outputs.ctypes.data) == ERROR
+    assert "obsfmuDoStepBatched: NULL value references or values for 1 variables" in probe.messages(mark)
+    plan = StepPlan(None, 0, None, None, out_vr.ctypes.data, len(out_vr), None)
+    assert planned(probe)(probe.slave.component, probe.t, step, ctypes.byref(plan)) == ERROR
+    assert f"obsfmuDoStepPlanned: NULL value references or values for {len(out_vr)} variables" in probe.messages(mark)
+    probe.assert_unchanged(before)
