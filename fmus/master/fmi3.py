@@ -37,8 +37,8 @@ from fmpy import read_model_description
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi3 import FMU3Slave
 
-from ..master import SimulationError, _Instance
-from .elements import Element, elements
+from .session import SimulationError, _Instance
+from ..fmi3.elements import Element, elements
 
 __all__ = ["Fmi3Instance", "fmi_version_of"]
 

@@ -68,7 +68,7 @@ from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFr
                        fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
 from fmpy import calloc, free
 
-from .result import Result
+from ..result import Result
 from .round import NativeRound
 
 __all__ = ["Component", "Connection", "System", "SimulationError", "Session", "Recorder", "MemoryRecorder",
@@ -327,7 +327,7 @@ def _instance(component: Component, log):
     Both serve the fast path of :class:`_Stepper` (``prepare``, ``bind_outputs``, ``set_inputs``,
     ``do_step``, ``refresh_outputs`` returning FMI statuses) and are extracted once per content.
     """
-    from .fmi3.instance import Fmi3Instance, fmi_version_of
+    from .fmi3 import Fmi3Instance, fmi_version_of
     fmu = Path(component.fmu)
     if fmu.is_file() and fmi_version_of(fmu) == 3:
         return Fmi3Instance(component, _extracted(fmu), log)
