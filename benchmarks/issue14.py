@@ -342,13 +342,13 @@ INSTANTIATE = """
 import sys, time
 import numpy, fmpy, fmpy.fmi2
 from fmpy import extract, read_model_description
-from fmus.master import _Logger
+from fmus.master.log import Logger
 path = sys.argv[1]
 description = read_model_description(path)
 directory = extract(path)
 slave = fmpy.fmi2.FMU2Slave(guid=description.guid, unzipDirectory=directory,
                             modelIdentifier=description.coSimulation.modelIdentifier, instanceName="x")
-logger = _Logger(False)
+logger = Logger(False)
 start = time.process_time()
 slave.instantiate(callbacks=logger.callbacks, loggingOn=False)
 slave.setupExperiment(startTime=0.0)

@@ -61,22 +61,22 @@ def test_the_extract_cache_skips_entries_another_process_removed(ship_fmus, tmp_
     partial extraction an hour old (a killed run's) goes, one in progress stays."""
     import os
 
-    from fmus import master
+    from fmus.master import cache
 
-    cache = tmp_path / "extracted"
-    cache.mkdir()
-    monkeypatch.setattr(master, "EXTRACT_CACHE", cache)
-    monkeypatch.setattr(master, "EXTRACT_CACHE_SIZE", 2)
-    (cache / "removed-meanwhile").symlink_to(tmp_path / "nowhere")
+    folder = tmp_path / "extracted"
+    folder.mkdir()
+    monkeypatch.setattr(cache, "EXTRACT_CACHE", folder)
+    monkeypatch.setattr(cache, "EXTRACT_CACHE_SIZE", 2)
+    (folder / "removed-meanwhile").symlink_to(tmp_path / "nowhere")
     for age in range(3):
-        (cache / f"old{age}").mkdir()
-        os.utime(cache / f"old{age}", (1000 + age, 1000 + age))
-    (cache / ".abandoned.x").mkdir()                         # left by a run killed while extracting
-    os.utime(cache / ".abandoned.x", (1000, 1000))
-    (cache / ".extracting.y").mkdir()                        # another run extracting now
-    path = master._extracted(ship_fmus["ship_plant"])
+        (folder / f"old{age}").mkdir()
+        os.utime(folder / f"old{age}", (1000 + age, 1000 + age))
+    (folder / ".abandoned.x").mkdir()                         # left by a run killed while extracting
+    os.utime(folder / ".abandoned.x", (1000, 1000))
+    (folder / ".extracting.y").mkdir()                        # another run extracting now
+    path = cache.extracted(ship_fmus["ship_plant"])
     assert (path / "modelDescription.xml").is_file()
-    kept = sorted(entry.name for entry in cache.iterdir() if entry.is_dir() and not entry.is_symlink())
+    kept = sorted(entry.name for entry in folder.iterdir() if entry.is_dir() and not entry.is_symlink())
     assert kept == sorted([path.name, "old2", ".extracting.y"])
 
 

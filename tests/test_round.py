@@ -1,4 +1,4 @@
-"""``obsfmuRound`` (fmus/round.py, fmus/native/loader.c): the master's Gauss-Seidel round in one call of an
+"""``obsfmuRound`` (fmus/master/round.py, fmus/native/loader.c): the master's Gauss-Seidel round in one call of an
 obsfmu binary is the Python round, bit for bit -- linear and held coupling, a ramped start, the adaptive
 master's rollbacks -- and a failing member is named as before."""
 
@@ -9,8 +9,8 @@ import ctypes
 import numpy as np
 import pytest
 
-from fmus.master import Component, SimulationError, Session, System, _Stepper
-from fmus.round import NativeRound
+from fmus.master import Component, SimulationError, Session, System
+from fmus.master.round import NativeRound, Stepper
 from fmus.scenarios import ensure_fmus, get
 
 ERROR = 3
@@ -82,7 +82,7 @@ def test_bad_links_are_refused_before_any_step(ship_fmus):
     """An input linked past the end of the outputs: fmi2Error naming the member, no FMU stepped."""
     with Session(system(get("ship"), ship_fmus), echo_log=False) as session:
         session.run(0.002, 1e-3)
-        stepper = _Stepper(session.instances, session.logger, jacobi=False, linear=True)
+        stepper = Stepper(session.instances, session.logger, jacobi=False, linear=True)
         native = stepper.native
         assert native is not None
         member = list(session.instances.values()).index(next(i for i in session.instances.values() if i.input_vrs))

@@ -89,7 +89,7 @@ class Unzipped:
 
 
 def system_script(unzipped: list[Unzipped], connections, starts: dict[str, dict[str, float]]) -> list[str]:
-    """The importer's declarations of a system: like :func:`fmus.master._wire`, element by element."""
+    """The importer's declarations of a system: like :func:`fmus.master.wiring.wire`, element by element."""
     lines, offsets, offset = [], {}, 0
     by_name = {u.instance: u for u in unzipped}
     for u in unzipped:
