@@ -56,6 +56,7 @@ class Fmi2Instance(Instance):
                                modelIdentifier=description.coSimulation.modelIdentifier, instanceName=name)
         self.output_values = np.zeros(len(self.outputs))
         self.raw = _RawCalls(self.slave.dll)
+        self._bind_life_cycle()
 
     def prepare(self) -> None:
         """Buffers of the stepping loop (after wiring): value references, input values and slopes."""
@@ -126,7 +127,7 @@ class Fmi2Instance(Instance):
         """The binary offers ``obsfmuDoStepPlanned`` (an obsfmu FMU, fmus/native/loader.c)."""
         return self.raw.step_planned is not None
 
-    # ------------------------------------------------------------------ life cycle (fmpy)
+    # ------------------------------------------------------------------ life cycle (fmpy's FMU2Slave)
     def instantiate(self) -> None:
         self.slave.instantiate(callbacks=self._log.callbacks, loggingOn=True)
         self.instantiated = True
@@ -134,29 +135,12 @@ class Fmi2Instance(Instance):
     def setup_experiment(self, start_time: float, stop_time: float) -> None:
         self.slave.setupExperiment(None, start_time, stop_time)
 
-    def enter_initialization_mode(self) -> None:
-        self.slave.enterInitializationMode()
-
-    def exit_initialization_mode(self) -> None:
-        self.slave.exitInitializationMode()
-
-    def terminate(self) -> None:
-        self.slave.terminate()
-
-    def reset(self) -> None:
-        self.slave.reset()
-
-    def get_state(self):
-        return self.slave.getFMUstate()
-
-    def set_state(self, state) -> None:
-        self.slave.setFMUstate(state)
-
-    def free_state(self, state) -> None:
-        self.slave.freeFMUstate(state)
-
-    def _free_instance(self) -> None:
-        self.slave.freeInstance()         # and unloads the library (fmpy), once
-
-    def _free_library(self) -> None:
-        self.slave.freeLibrary()
+    def _bind_life_cycle(self) -> None:
+        """The calls of the interface that are fmpy's own, one to one."""
+        slave = self.slave
+        self.enter_initialization_mode, self.exit_initialization_mode = (slave.enterInitializationMode,
+                                                                         slave.exitInitializationMode)
+        self.terminate, self.reset = slave.terminate, slave.reset
+        self.get_state, self.set_state, self.free_state = slave.getFMUstate, slave.setFMUstate, slave.freeFMUstate
+        self._free_instance = slave.freeInstance       # and unloads the library (fmpy), once
+        self._free_library = slave.freeLibrary
