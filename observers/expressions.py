@@ -32,7 +32,7 @@ import numpy as np
 
 from .checks import ParameterError
 
-__all__ = ["ExpressionError", "Source", "Names", "compile_expression", "compile_vector", "FUNCTIONS",
+__all__ = ["ExpressionError", "Source", "Names", "compile_expression", "compile_vector", "VectorFunction", "FUNCTIONS",
            "MAX_LENGTH", "MAX_DEPTH"]
 
 MAX_LENGTH = 4000      #: characters in one expression
@@ -199,6 +199,7 @@ class _Compiler:
 
     def __init__(self, text: str, names: Names, source: Source):
         self.text, self.names, self.source = "(" + text + "\n)", names, source
+        self.uses: set[str] = set()           # the vectors and names the expression reads
 
     def refuse(self, node: ast.AST, what: str) -> ExpressionError:
         return ExpressionError(f"{self.source.at(node)}: {what}: {_token(node, self.text)!r}")
@@ -224,6 +225,7 @@ class _Compiler:
 
     def _Name(self, node: ast.Name, depth: int) -> Evaluator:
         name, names = node.id, self.names
+        self.uses.add(name)
         if name == "t" and names.time:
             return lambda t, x, u, p: t
         if name in names.parameters:
@@ -248,6 +250,7 @@ class _Compiler:
             raise self.refuse(node, f"index out of range: {vector} has {size} entries, {vector}[1] to {vector}[{size}]"
                               + (" (indices start at 1, as in the FMU's variable names)" if index.value == 0 else ""))
         position = index.value - 1
+        self.uses.add(vector)
         getter = {"x": lambda t, x, u, p: x[position], "u": lambda t, x, u, p: u[position],
                   "p": lambda t, x, u, p: p[position]}
         return getter[vector]
@@ -303,19 +306,34 @@ class _Compiler:
         return lambda t, x, u, p: float(function(first(t, x, u, p), second(t, x, u, p)))
 
 
+def _compiled(text: str, names: Names, source: Source) -> tuple[Evaluator, set[str]]:
+    text = _check_text(text, source)
+    compiler = _Compiler(text, names, source)
+    return compiler.build(_parse(text, source)), compiler.uses
+
+
 def compile_expression(text: str, names: Names, source: Source) -> Evaluator:
     """Check ``text`` against the grammar and return ``evaluate(t, x, u, p) -> float``.
 
     :class:`ExpressionError` names the field, the place in the file and the token of the first
     thing outside the grammar.
     """
-    text = _check_text(text, source)
-    return _Compiler(text, names, source).build(_parse(text, source))
+    return _compiled(text, names, source)[0]
 
 
-def compile_vector(texts: Sequence[str], names: Names, source: Source, size: int | None = None
-                   ) -> Callable[[float, np.ndarray, np.ndarray, np.ndarray], np.ndarray]:
-    """``texts`` (one expression per component) as one function returning a float vector.
+class VectorFunction:
+    """Expressions, one per component, as ``f(t, x, u, p) -> float vector``; ``uses``: the names read."""
+
+    def __init__(self, parts: list[Evaluator], uses: set[str]):
+        self.parts, self.uses, self.size = parts, frozenset(uses), len(parts)
+
+    def __call__(self, t: float, x: np.ndarray, u: np.ndarray, p: np.ndarray) -> np.ndarray:
+        t, x, u, p = float(t), x.tolist(), u.tolist(), p.tolist()     # Python floats: several times faster
+        return np.array([part(t, x, u, p) for part in self.parts], dtype=float)
+
+
+def compile_vector(texts: Sequence[str], names: Names, source: Source, size: int | None = None) -> VectorFunction:
+    """``texts`` (one expression per component) as one :class:`VectorFunction`.
 
     ``source.field`` names the whole vector (``plant.f``); each component is reported as
     ``plant.f[i]``.  ``size``: the number of components required.
@@ -324,11 +342,6 @@ def compile_vector(texts: Sequence[str], names: Names, source: Source, size: int
         raise ExpressionError(f"{source.field}: expected a list of expressions, one per component")
     if size is not None and len(texts) != size:
         raise ExpressionError(f"{source.field}: expected {size} expressions (one per component), got {len(texts)}")
-    parts = [compile_expression(text, names, Source(f"{source.field}[{i}]", source.file, source.line, source.column))
-             for i, text in enumerate(texts, start=1)]
-
-    def evaluate(t: float, x: np.ndarray, u: np.ndarray, p: np.ndarray) -> np.ndarray:
-        t, x, u, p = float(t), x.tolist(), u.tolist(), p.tolist()     # Python floats: several times faster
-        return np.array([part(t, x, u, p) for part in parts], dtype=float)
-
-    return evaluate
+    compiled = [_compiled(text, names, Source(f"{source.field}[{i}]", source.file, source.line, source.column))
+                for i, text in enumerate(texts, start=1)]
+    return VectorFunction([part for part, _ in compiled], set().union(*(uses for _, uses in compiled)))
