@@ -20,15 +20,14 @@ observer's error ``x - x_hat`` can be formed.  Direct feedthrough exactly when `
 
 from __future__ import annotations
 
-import math
 from typing import Mapping
 
 import numpy as np
 
 from observers.block import Block, Segment
-from observers.checks import ParameterError, SignalError, as_vector, require_positive
+from observers.checks import ParameterError, as_vector, require_positive
 from observers.expressions import VectorFunction
-from observers.integrators import DEFAULT_SUBSTEP_BUDGET, BudgetError, require_budget, rk4_step, substep_count
+from observers.integrators import DEFAULT_SUBSTEP_BUDGET, require_budget, rk4_step, sample_count, substep_count
 
 __all__ = ["ExpressionPlant"]
 
@@ -86,15 +85,8 @@ class ExpressionPlant(Block):
 
     def _samples(self, t: float, h: float, u: Segment) -> np.ndarray:
         T = self.sample_time
-        count = round(h / T)
-        if count < 1 or not math.isclose(count * T, h, rel_tol=1e-9):
-            raise SignalError(f"sample_time: a step of a discrete plant covers whole samples of T = {T:g}; "
-                              f"h = {h:g} is {h / T:.6g} samples")
-        if count > self.substep_budget:
-            raise BudgetError(f"substep_budget: the step h = {h:g} is {count} samples, more than "
-                              f"substep_budget = {self.substep_budget}")
         x = self.x
-        for k in range(count):
+        for k in range(sample_count(h, T, self.substep_budget)):
             s = k * T
             x = self.f(t + s, x, u.start + s * u.slope, self.p)
         return x

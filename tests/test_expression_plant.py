@@ -57,7 +57,7 @@ def test_a_discrete_plant_steps_sample_by_sample_as_a_hand_loop():
             uj = math.cos(t) + (j * 0.1) * 2.0
             x = [3.7 * x[0] * (1 - x[0]) + 0.01 * uj, 0.5 * x[1] + x[0]]
         np.testing.assert_allclose(plant.x, x, rtol=1e-14, atol=1e-15)
-    with pytest.raises(SignalError, match="sample_time: a step of a discrete plant covers whole samples"):
+    with pytest.raises(SignalError, match="sample_time: a step of a discrete block covers whole samples"):
         plant.advance(4.0, 0.15, {"u": Segment.hold([0.0])})
 
 
