@@ -2,11 +2,11 @@
 
 Every FMU of the project contains a two-line module::
 
-    from fmus.slave import BlockSlave
+    from fmus.runtime.slave import BlockSlave
     class ship_observer(BlockSlave):
         definition_file = "ship_observer.json"
 
-and the definition file (:mod:`fmus.definition`).  This class turns the
+and the definition file (:mod:`fmus.runtime.definition`).  This class turns the
 definition into FMI variables, builds the block from the parameter values
 when they are first needed (so values set by the importer before or during
 initialization take effect), and advances it in ``do_step``.
@@ -50,7 +50,7 @@ Faults never crash the host and never corrupt the instance (``docs/faults.md`` h
   please report") -- is a *failure*: fmi2Error, and the binary puts the instance in the FMI error
   state (fmi2SetFMUstate, fmi2Reset or fmi2FreeInstance go on);
 * FMU states are plain data (:mod:`observers.state`) in an explicit, versioned, checksummed
-  format (:mod:`fmus.state_format`), the binary's own fields (FMI version, state machine state)
+  format (:mod:`fmus.runtime.state_format`), the binary's own fields (FMI version, state machine state)
   included: the one serialized form of an FMU state.
 """
 
@@ -73,9 +73,9 @@ from observers.block import MAGNITUDE_BOUND, Block, Segment
 from observers.checks import ParameterError
 from observers.state import Leaves, StateError, capture, out_of_bounds, plain, within, within_bound
 
-from .definition import FmuDefinition, element_unit
-from .kinds import create_block
-from .state_format import StateFormatError, pack, unpack
+from ..definition import FmuDefinition, element_unit
+from ..kinds import create_block
+from ..state_format import StateFormatError, pack, unpack
 
 __all__ = ["BlockSlave", "InputMode", "FmuState", "Refused", "CAPABILITIES"]
 
@@ -1045,7 +1045,7 @@ class BlockSlave(Fmi2Slave):
                                    and len(loader["state"]) < 32), "loader")
 
     def serialize_fmu_state(self, state) -> bytes:
-        """The bytes of ``state`` (:mod:`fmus.state_format`): the one serialized form of an FMU state."""
+        """The bytes of ``state`` (:mod:`fmus.runtime.state_format`): the one serialized form of an FMU state."""
         state = self._own(state)
         return pack(state.identity, plain(state.tree))
 
