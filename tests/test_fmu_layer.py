@@ -257,10 +257,10 @@ def test_an_fmu_bundles_only_the_runtime_part_of_fmus(ship_fmus):
 def test_an_instance_context_ignores_floating_point_errors_and_leaves_the_callers_setting():
     """The slave runs its entry points in a context of its own where numpy ignores floating-point
     errors (numpy >= 2 keeps that setting per context); the caller's setting stays as it was."""
-    from fmus import slave
+    from fmus.runtime.slave.numerics import numerics_context
     old = np.seterr(all="raise")
     try:
-        context = slave._numerics_context()
+        context = numerics_context()
         if np.lib.NumpyVersion(np.__version__) >= "2.0.0":
             assert context is not None
         if context is not None:
