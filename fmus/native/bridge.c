@@ -235,7 +235,7 @@ static int add_squares(PyObject *item, double *sum)
  * in `previous` (a list of the same length, or None), and of the list `floats` (or None) is finite and at most
  * `bound` in magnitude, as their sum of squares shows; False when that sum does not show it (a number that is
  * not finite, or large ones), None when an item is of another kind or `previous` of another length.  Only True
- * decides: the caller tests anything else number by number (fmus/runtime/slave; the same test as
+ * decides: the caller tests anything else number by number (fmus/runtime/slave/step.py; the same test as
  * observers.state.within_bound, without concatenating the arrays: issue 14). */
 static PyObject *native_within(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
