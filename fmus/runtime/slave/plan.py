@@ -13,7 +13,7 @@ class BatchPlan:
     and outputs (:meth:`~fmus.runtime.slave.step.Stepping.batch_plan`)."""
 
     __slots__ = ("input_vrs", "output_vrs", "given_data", "values", "slopes", "outputs", "derivatives", "positions",
-                 "given", "common", "in_order", "output_order")
+                 "given", "held", "common", "in_order", "output_order")
 
     def __init__(self, input_vrs, derivatives, output_vrs, positions: list[int], input_slices: dict[str, slice],
                  output_positions: list[int], output_count: int):
@@ -29,6 +29,7 @@ class BatchPlan:
         # ports set by the call and where they are in its vectors (None: the only port, the whole vectors)
         self.given = tuple((port, None if self.in_order and len(input_slices) == 1 else input_slices[port])
                            for port, n in covered.items() if n)
+        self.held = [port for port, n in covered.items() if not n]                     # ports left as they are
         # the plan's part of a common step: slopes given, every port given whole or not at all
         self.common = self.derivatives and \
             all(covered[port] in (0, where.stop - where.start) for port, where in input_slices.items())

@@ -43,14 +43,15 @@ class Stepping:
         """The step of the inputs as set port by port: their values, and the slopes of those given a derivative."""
         if self._block is None or self._bad or not (0.0 < h < math.inf and math.isfinite(t)):
             return self._refuse_before(t, h)
-        derivatives, flat = self._derivatives, self._input_flat
-        slope, moving = None, ()
+        derivatives, flat, slices = self._derivatives, self._input_flat, self._input_slices
+        slope, moving, held = None, (), list(slices)
         if derivatives:
             slope = np.zeros(flat.size)
-            moving = tuple((port, where) for port, where in self._input_slices.items() if port in derivatives)
+            moving = tuple((port, where) for port, where in slices.items() if port in derivatives)
+            held = [port for port in slices if port not in derivatives]
             for port, where in moving:
                 slope[where] = derivatives[port]
-        return self._step(t, h, flat.copy(), slope, moving)
+        return self._step(t, h, flat.copy(), slope, moving, held)
 
     @host_independent_numerics
     def step_batched(self, current_time, step_size) -> bool:
@@ -79,7 +80,7 @@ class Stepping:
             flat[plan.positions] = values
             start, slope = flat.copy(), np.zeros(flat.size)
             slope[plan.positions] = slopes
-        return self._step(t, h, start, slope, plan.given, plan)
+        return self._step(t, h, start, slope, plan.given, plan.held, plan)
 
     def _step_by_calls(self, plan: BatchPlan, t: float, h: float) -> bool:
         """:meth:`step_batched` as the separate calls it stands for (what names a fault, and the rare cases)."""
@@ -115,44 +116,40 @@ class Stepping:
         return plan.values, plan.slopes, plan.outputs
 
     # ------------------------------------------------------------------ the step
-    def _step(self, t: float, h: float, start: np.ndarray, slope: np.ndarray | None, moving,
+    def _step(self, t: float, h: float, start: np.ndarray, slope: np.ndarray | None, moving, held,
               plan: BatchPlan | None = None) -> bool:
         """The one step of an FMU, from ``start`` (every input element at the step start, a new vector) and
         ``slope``: ``moving`` lists ``(port, where)`` of the ports that follow their slope over the step, in
-        declaration order (``where`` None: the only port, the whole vectors); the other ports follow their
+        declaration order (``where`` None: the only port, the whole vectors); the ports ``held`` follow their
         ``<port>_interpolation`` mode.  With ``plan`` (:meth:`step_batched`) the outputs go into its vector.
         True if the step was taken: the inputs are then at the step end and recorded."""
-        block, slices = self._block, self._input_slices
-        derivatives, ends, end = {}, {}, None
+        block = self._block
+        derivatives, ends, segments, end = {}, {}, {}, None
         if moving:
             end = slope * h
             end += start
             for port, where in moving:
                 if where is None:
-                    derivatives[port], ends[port] = slope, end
+                    derivatives[port], ends[port], segments[port] = slope, end, Segment(start, slope)
                 else:
                     derivatives[port], ends[port] = slope[where], end[where]
+                    segments[port] = Segment(start[where], derivatives[port])
         self._derivatives = derivatives          # the slopes of the step (a fault names them)
-        held = () if len(moving) == len(slices) else [port for port in slices if port not in derivatives]
         if block.stateless:
             segments = None
-        elif not held:                           # every port follows its slope (moving: in declaration order)
-            segments = {port: Segment(start if where is None else start[where], derivatives[port])
-                        for port, where in moving}
-        else:                                    # in declaration order too
-            segments = {port: Segment(start[where], derivatives[port]) if port in derivatives
-                        else self._held_segment(port, t, h) for port, where in slices.items()}
+        elif held:                               # every port in declaration order, as in moving
+            segments = {port: segments[port] if port in segments else self._held_segment(port, t, h)
+                        for port in self._input_slices}
         staged = plan if plan is not None and plan.output_order is None else None
         if not self._checked_step(t, h, block, segments, ends, staged):
             return False
         if moving:                               # the inputs at the end (the held ones as they were)
-            flat = self._input_flat
             if held:
                 for port, where in moving:
-                    flat[where] = end[where]
+                    self._input_flat[where] = end[where]
             else:
-                flat[:] = end
-        at_end = tuple(port for port in held if self._modes[port][0] == INTERPOLATE)
+                self._input_flat[:] = end
+        at_end = tuple(port for port in held if self._modes[port][0] == INTERPOLATE) if held else ()
         self._pending_record, self._derivatives = (start, end, held, at_end, t, t + h), {}
         if plan is not None and staged is None:
             self._write_outputs(plan, self._outputs_cache)
