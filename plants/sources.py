@@ -330,6 +330,8 @@ class Table(Source):
     def __init__(self, times, values, interpolation: str = "linear", names=("times", "values")):
         super().__init__()
         self.times = as_vector(names[0], times)
+        if self.times.size == 0:
+            raise ParameterError(f"{names[0]}: expected at least one entry")
         self.values = as_vector(names[1], values, self.times.size)
         steps = np.diff(self.times)
         if np.any(steps <= 0):
