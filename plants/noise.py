@@ -44,7 +44,7 @@ from .sources import interval_index
 __all__ = ["CHECKPOINT", "Noise", "NoiseSource", "AddedNoise"]
 
 #: intervals between two saved filter states
-CHECKPOINT = 1024
+CHECKPOINT = 256
 
 
 def _discrete_low_pass(cutoff_hz: float, order: int, dt: float) -> tuple[np.ndarray, np.ndarray]:
@@ -89,6 +89,7 @@ class Noise:
                 raise ParameterError(f"filter_order: expected 1 or 2, got {filter_order!r}")
             self.filter = _discrete_low_pass(cutoff, int(filter_order), self.dt)
         self._last: tuple[int, np.ndarray] | None = None
+        self._white: tuple[int, np.ndarray] | None = None
         self._checkpoints: dict[int, np.ndarray] = {}
 
     def _draw(self, rng: np.random.Generator) -> np.ndarray:
@@ -97,8 +98,11 @@ class Noise:
         return self.std * rng.uniform(-math.sqrt(3.0), math.sqrt(3.0), self.size)
 
     def white(self, k: int) -> np.ndarray:
-        """``w_k``, the held white sample of interval ``k``."""
-        return self._draw(np.random.default_rng((self.seed, int(k))))
+        """``w_k``, the held white sample of interval ``k`` (the last one is kept: steps within an interval)."""
+        k = int(k)
+        if self._white is None or self._white[0] != k:
+            self._white = (k, self._draw(np.random.default_rng((self.seed, k))))
+        return self._white[1].copy()
 
     def variance(self) -> float:
         """Variance of the output on any interval: ``std^2`` (white) or ``P[0, 0]`` (band-limited)."""

@@ -196,8 +196,29 @@ def test_prbs_period_and_balance_counted(n):
     assert bits[:period] == bits[period:]
     assert min(p for p in range(1, period + 1) if bits[p:p + period] == bits[:period]) == period
     assert sum(bits[:period]) == 2 ** (n - 1)            # one more 1 than 0 in a period
+    assert _runs(bits[:period]) == _m_sequence_runs(n)
     values = PRBS(2.0, 0.5, 1, n, offset=1.0).value(np.arange(period) * 0.5 + 0.25)
     assert sorted(set(values.tolist())) == [-1.0, 3.0] and values.mean() == pytest.approx(1.0 + 2.0 / period)
+
+
+def _runs(bits: list[int]) -> dict[tuple[int, int], int]:
+    """(bit, length) -> count of the maximal runs of the cyclic sequence ``bits`` (it has both bits)."""
+    start = next(i for i in range(len(bits)) if bits[i] != bits[i - 1])
+    rotated, counts, length = bits[start:] + bits[:start], {}, 1
+    for previous, bit in zip(rotated, rotated[1:] + rotated[:1]):
+        if bit == previous:
+            length += 1
+        else:
+            counts[(previous, length)] = counts.get((previous, length), 0) + 1
+            length = 1
+    return counts
+
+
+def _m_sequence_runs(n: int) -> dict[tuple[int, int], int]:
+    """Golomb's run property of an m-sequence: 2^(n-k-2) runs of length k of each bit for k <= n - 2,
+    one run of n - 1 zeros, one run of n ones."""
+    counts = {(bit, k): 2 ** (n - k - 2) for bit in (0, 1) for k in range(1, n - 1)}
+    return counts | {(0, n - 1): 1, (1, n): 1}
 
 
 def test_prbs_value_depends_only_on_seed_and_bit_index():
