@@ -27,7 +27,7 @@ import numpy as np
 from observers.block import Block, Segment
 from observers.checks import ParameterError, as_vector, require_positive
 
-__all__ = ["interval_index", "Source", "Constant", "Step", "Ramp", "MultiSine", "Sine", "Chirp",
+__all__ = ["interval_index", "Source", "PiecewiseConstant", "Constant", "Step", "Ramp", "MultiSine", "Sine", "Chirp",
            "Square", "PRBS", "PRIMITIVE_TAPS", "Table", "CsvColumn"]
 
 #: fraction of an interval within which a time counts as on the next boundary
@@ -70,7 +70,14 @@ class Source(Block):
         """Nothing to integrate: the output is a function of time."""
 
 
-class Constant(Source):
+class PiecewiseConstant(Source):
+    """A source that only jumps: ``derivative(t) = 0`` (from the right at a jump too)."""
+
+    def derivative(self, t):
+        return 0.0 * np.asarray(t, dtype=float)
+
+
+class Constant(PiecewiseConstant):
     """``y(t) = value``."""
 
     not_state = ("level",)
@@ -82,11 +89,8 @@ class Constant(Source):
     def value(self, t):
         return self.level + 0.0 * np.asarray(t, dtype=float)
 
-    def derivative(self, t):
-        return 0.0 * np.asarray(t, dtype=float)
 
-
-class Step(Source):
+class Step(PiecewiseConstant):
     """``y(t) = offset + height * [t >= time]``."""
 
     not_state = ("time", "height", "offset")
@@ -97,9 +101,6 @@ class Step(Source):
 
     def value(self, t):
         return self.offset + self.height * (np.asarray(t, dtype=float) >= self.time)
-
-    def derivative(self, t):
-        return 0.0 * np.asarray(t, dtype=float)
 
 
 class Ramp(Source):
@@ -221,7 +222,7 @@ class Chirp(Source):
         return self.amplitude * 2 * np.pi * frequency * np.cos(phi) * self._active(t)
 
 
-class Square(Source):
+class Square(PiecewiseConstant):
     """``y(t) = offset + amplitude`` for the first ``duty`` fraction of each period from ``t = 0``,
     ``offset - amplitude`` for the rest (zero mean about ``offset`` at ``duty = 0.5``)."""
 
@@ -240,9 +241,6 @@ class Square(Source):
         fraction = cycles - np.floor(cycles + BOUNDARY_TOLERANCE)
         return self.offset + self.amplitude * np.where(fraction < self.duty - BOUNDARY_TOLERANCE, 1.0, -1.0)
 
-    def derivative(self, t):
-        return 0.0 * np.asarray(t, dtype=float)
-
 
 #: feedback taps of a maximal-length Fibonacci LFSR for each register length (Xilinx XAPP052):
 #: ``a[k + n] = XOR of a[k + n - tap]`` over the taps, characteristic polynomial
@@ -256,7 +254,7 @@ PRIMITIVE_TAPS = {
 }
 
 
-class PRBS(Source):
+class PRBS(PiecewiseConstant):
     """Pseudo-random binary sequence of a maximal-length LFSR: ``y = offset + amplitude (2 a_k - 1)``
     on bit interval ``k`` (``[k bit_period, (k + 1) bit_period)``, negative times in bit 0).
 
@@ -311,9 +309,6 @@ class PRBS(Source):
         k = interval_index(t, self.bit_period)
         bits = np.vectorize(self.bit, otypes=[float])(k) if k.ndim else float(self.bit(int(k)))
         return self.offset + self.amplitude * (2.0 * np.asarray(bits) - 1.0)
-
-    def derivative(self, t):
-        return 0.0 * np.asarray(t, dtype=float)
 
 
 class Table(Source):
@@ -375,7 +370,7 @@ class CsvColumn(Table):
 
     def _read(self, time_column: str) -> tuple[list[float], list[float]]:
         try:
-            with Path(self.path).open(newline="") as file:
+            with Path(self.path).open(newline="", encoding="utf-8-sig") as file:
                 rows = list(csv.reader(file))
         except (OSError, UnicodeDecodeError, csv.Error) as exc:
             raise ParameterError(f"path: cannot read {self.path!r}: {exc}") from exc

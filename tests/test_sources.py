@@ -258,6 +258,8 @@ def test_csv_column_with_interpolation(tmp_path):
     assert CsvColumn(path, "u", interpolation="previous").value(np.array([0.5, 1.0, 2.9, 3.5])).tolist() == [1, 3, 3, -1]
     assert CsvColumn(path, "time", time_column="y").value(15.0) == 0.5
     assert capture(column) == {}
+    with_bom = _write(tmp_path, "\ufefftime,y\n0,1\n2,5\n", "excel.csv")
+    assert CsvColumn(with_bom, "y").value(1.0) == 3.0
 
 
 @pytest.mark.parametrize("text, column, message", [
