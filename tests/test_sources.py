@@ -1,4 +1,4 @@
-"""plants/sources.py: every waveform against its formula written here, derivatives against finite
+"""plants/sources: every waveform against its formula written here, derivatives against finite
 differences, the PRBS against an independent shift register and GF(2) theory, tables and CSV files
 on known data, and every bad parameter named."""
 

@@ -1,0 +1,59 @@
+"""What every source shares: the base block, interval boundaries, scalar parameters."""
+
+from __future__ import annotations
+
+from typing import Mapping
+
+import numpy as np
+
+from observers.block import Block, Segment
+from observers.checks import as_vector
+
+__all__ = ["BOUNDARY_TOLERANCE", "interval_index", "scalar_parameter", "Source", "PiecewiseConstant"]
+
+#: fraction of an interval within which a time counts as on the next boundary
+BOUNDARY_TOLERANCE = 1e-9
+
+
+def interval_index(t, dt: float):
+    """Index ``k`` of the interval ``[k dt, (k + 1) dt)`` holding ``t``; negative times give 0."""
+    k = np.floor(np.asarray(t, dtype=float) / dt + BOUNDARY_TOLERANCE).astype(np.int64)
+    return np.maximum(k, 0)
+
+
+def scalar_parameter(name: str, value) -> float:
+    """``value`` as one finite float; :class:`ParameterError` naming ``name`` otherwise."""
+    return float(as_vector(name, value, 1)[0])
+
+
+class Source(Block):
+    """Base of every source: no inputs, ``y = [value(t)]``, nothing to integrate.
+
+    A subclass sets its parameters in ``__init__`` (after ``super().__init__()``), lists them in
+    ``not_state`` and implements ``value(t)`` and ``derivative(t)``.
+    """
+
+    stateless = True
+
+    def __init__(self):
+        self.input_sizes = {}
+        self.output_sizes = {"y": 1}
+
+    def value(self, t):
+        raise NotImplementedError
+
+    def derivative(self, t):
+        raise NotImplementedError
+
+    def outputs(self, t: float, inputs: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+        return {"y": np.array([float(self.value(t))])}
+
+    def advance(self, t: float, h: float, inputs: Mapping[str, Segment]) -> None:
+        """Nothing to integrate: the output is a function of time."""
+
+
+class PiecewiseConstant(Source):
+    """A source that only jumps: ``derivative(t) = 0`` (from the right at a jump too)."""
+
+    def derivative(self, t):
+        return 0.0 * np.asarray(t, dtype=float)
