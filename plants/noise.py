@@ -37,7 +37,7 @@ import numpy as np
 
 from observers.block import Block, Segment
 from observers.checks import ParameterError, require_positive
-from observers.integrators import expm
+from observers.integrators import BudgetError, expm
 
 from .sources import interval_index
 
@@ -69,10 +69,31 @@ def stationary_covariance(Ad: np.ndarray, Bd: np.ndarray, variance: float) -> np
 
 
 class Noise:
-    """Seeded sample-and-hold noise of ``size`` streams (see module docstring): ``noise(t)`` -> array."""
+    """Seeded sample-and-hold noise of ``size`` streams (see module docstring): ``noise(t)`` -> array.
+
+    Parameters
+    ----------
+    std : float
+        Standard deviation of the white samples ``w_k`` (>= 0; 0 gives zeros).
+    sample_interval : float
+        ``dt`` (s), > 0: one sample per interval ``[k dt, (k + 1) dt)``, held.
+    seed : int
+        >= 0; ``w_k`` is drawn from ``default_rng((seed, k))``.
+    size : int
+        Number of independent streams (the length of ``noise(t)``).
+    distribution : {"gaussian", "uniform"}
+        Of the white samples, both of standard deviation ``std``.
+    cutoff_hz : float, optional
+        Cut-off (Hz, > 0) of the low-pass; white noise without it.
+    filter_order : {1, 2}
+        First order or second-order Butterworth.
+    interval_budget : int
+        Most filter steps one evaluation may take (band-limited): an evaluation needing more raises
+        :class:`~observers.integrators.BudgetError` before any work, so no call takes unbounded time.
+    """
 
     def __init__(self, std: float, sample_interval: float, seed: int, size: int = 1, distribution: str = "gaussian",
-                 cutoff_hz: float | None = None, filter_order: int = 1):
+                 cutoff_hz: float | None = None, filter_order: int = 1, interval_budget: int = 10 ** 6):
         self.std = require_positive("std", std, allow_zero=True)
         self.dt = require_positive("sample_interval", sample_interval)
         if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
@@ -82,6 +103,9 @@ class Noise:
         if distribution not in ("gaussian", "uniform"):
             raise ParameterError(f"distribution: expected 'gaussian' or 'uniform', got {distribution!r}")
         self.seed, self.size, self.distribution = int(seed), int(size), distribution
+        if isinstance(interval_budget, bool) or not isinstance(interval_budget, (int, np.integer)) or interval_budget < 1:
+            raise ParameterError(f"interval_budget: expected a positive integer, got {interval_budget!r}")
+        self.interval_budget = int(interval_budget)
         self.filter = None
         if cutoff_hz is not None:
             cutoff = require_positive("cutoff_hz", cutoff_hz)
@@ -126,6 +150,9 @@ class Noise:
         if k < reached:
             reached = (k // CHECKPOINT) * CHECKPOINT
             x = self._checkpoints[reached]
+        if k - reached > self.interval_budget:
+            raise BudgetError(f"interval_budget: interval {k} needs {k - reached} filter steps from interval {reached}, "
+                              f"more than the budget of {self.interval_budget}")
         Ad, Bd = self.filter
         while reached < k:
             x = Ad @ x + Bd * self.white(reached)
@@ -133,7 +160,7 @@ class Noise:
             if reached % CHECKPOINT == 0:
                 self._checkpoints.setdefault(reached, x)
         self._last = (k, x)
-        return x
+        return x.copy()
 
     def sample(self, k: int) -> np.ndarray:
         """The output on interval ``k``: ``w_k`` or ``z_k``."""

@@ -12,6 +12,7 @@ from scipy.linalg import expm, solve_discrete_lyapunov
 
 from observers.checks import ParameterError
 from observers.state import capture
+from observers.integrators import BudgetError
 from plants.noise import CHECKPOINT, AddedNoise, Noise, NoiseSource
 from plants.signals import SampledNoise
 
@@ -129,6 +130,17 @@ def test_band_limited_recurrence_is_the_exact_discretisation(order):
         np.testing.assert_allclose(noise.sample(k + 1), x[0], rtol=1e-9, atol=1e-12)
 
 
+def test_an_evaluation_beyond_the_interval_budget_is_refused_before_any_work():
+    noise = Noise(1.0, 0.01, 3, cutoff_hz=1.0, interval_budget=500)
+    first = noise(4.0)                                              # 400 filter steps: within
+    with pytest.raises(BudgetError, match=r"^interval_budget: interval 901 needs 501 filter steps from interval 400"):
+        noise(9.01)
+    with pytest.raises(BudgetError, match=r"^interval_budget: "):
+        noise(1e300)                                                # capped index, no overflow, no hang
+    assert noise(4.0).tolist() == first.tolist() and noise(9.0).tolist() == Noise(1.0, 0.01, 3, cutoff_hz=1.0)(9.0).tolist()
+    assert Noise(1.0, 0.01, 3)(math.nan).tolist() == Noise(1.0, 0.01, 3)(0.0).tolist()
+
+
 # --- blocks ---------------------------------------------------------------------------------------------
 
 def test_noise_source_and_added_noise_blocks():
@@ -154,6 +166,7 @@ def test_noise_source_and_added_noise_blocks():
     ({"distribution": "laplace"}, r"^distribution: expected 'gaussian' or 'uniform', got 'laplace'"),
     ({"cutoff_hz": 0.0}, r"^cutoff_hz: must be > 0"),
     ({"cutoff_hz": 1.0, "filter_order": 3}, r"^filter_order: expected 1 or 2, got 3"),
+    ({"interval_budget": 0}, r"^interval_budget: expected a positive integer, got 0"),
 ])
 def test_bad_parameter_is_named(kwargs, message):
     arguments = {"std": 1.0, "sample_interval": 0.1, "seed": 1} | kwargs

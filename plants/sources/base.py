@@ -16,9 +16,10 @@ BOUNDARY_TOLERANCE = 1e-9
 
 
 def interval_index(t, dt: float):
-    """Index ``k`` of the interval ``[k dt, (k + 1) dt)`` holding ``t``; negative times give 0."""
-    k = np.floor(np.asarray(t, dtype=float) / dt + BOUNDARY_TOLERANCE).astype(np.int64)
-    return np.maximum(k, 0)
+    """Index ``k`` of the interval ``[k dt, (k + 1) dt)`` holding ``t``; negative times give 0
+    (and indices are capped at ``2^62``, far beyond any run, so a huge time cannot overflow)."""
+    k = np.floor(np.asarray(t, dtype=float) / dt + BOUNDARY_TOLERANCE)
+    return np.clip(np.nan_to_num(k, nan=0.0), 0, 2.0 ** 62).astype(np.int64)
 
 
 def scalar_parameter(name: str, value) -> float:
