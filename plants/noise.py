@@ -39,7 +39,7 @@ from observers.block import Block, Segment
 from observers.checks import ParameterError, require_positive
 from observers.integrators import BudgetError, expm
 
-from .sources import interval_index
+from .sources.base import integer_parameter, interval_index
 
 __all__ = ["CHECKPOINT", "Noise", "NoiseSource", "AddedNoise"]
 
@@ -96,16 +96,11 @@ class Noise:
                  cutoff_hz: float | None = None, filter_order: int = 1, interval_budget: int = 10 ** 6):
         self.std = require_positive("std", std, allow_zero=True)
         self.dt = require_positive("sample_interval", sample_interval)
-        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-            raise ParameterError(f"seed: expected a non-negative integer, got {seed!r}")
-        if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or size < 1:
-            raise ParameterError(f"size: expected a positive integer, got {size!r}")
         if distribution not in ("gaussian", "uniform"):
             raise ParameterError(f"distribution: expected 'gaussian' or 'uniform', got {distribution!r}")
-        self.seed, self.size, self.distribution = int(seed), int(size), distribution
-        if isinstance(interval_budget, bool) or not isinstance(interval_budget, (int, np.integer)) or interval_budget < 1:
-            raise ParameterError(f"interval_budget: expected a positive integer, got {interval_budget!r}")
-        self.interval_budget = int(interval_budget)
+        self.seed, self.size = integer_parameter("seed", seed, 0), integer_parameter("size", size, 1)
+        self.distribution = distribution
+        self.interval_budget = integer_parameter("interval_budget", interval_budget, 1)
         self.filter = None
         if cutoff_hz is not None:
             cutoff = require_positive("cutoff_hz", cutoff_hz)

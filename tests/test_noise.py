@@ -160,13 +160,13 @@ def test_noise_source_and_added_noise_blocks():
 @pytest.mark.parametrize("kwargs, message", [
     ({"std": -1.0}, r"^std: must be >= 0"),
     ({"sample_interval": 0.0}, r"^sample_interval: must be > 0"),
-    ({"seed": -1}, r"^seed: expected a non-negative integer, got -1"),
-    ({"seed": 1.5}, r"^seed: expected a non-negative integer, got 1.5"),
-    ({"size": 0}, r"^size: expected a positive integer, got 0"),
+    ({"seed": -1}, r"^seed: expected an integer >= 0, got -1"),
+    ({"seed": 1.5}, r"^seed: expected an integer >= 0, got 1.5"),
+    ({"size": 0}, r"^size: expected an integer >= 1, got 0"),
     ({"distribution": "laplace"}, r"^distribution: expected 'gaussian' or 'uniform', got 'laplace'"),
     ({"cutoff_hz": 0.0}, r"^cutoff_hz: must be > 0"),
     ({"cutoff_hz": 1.0, "filter_order": 3}, r"^filter_order: expected 1 or 2, got 3"),
-    ({"interval_budget": 0}, r"^interval_budget: expected a positive integer, got 0"),
+    ({"interval_budget": 0}, r"^interval_budget: expected an integer >= 1, got 0"),
 ])
 def test_bad_parameter_is_named(kwargs, message):
     arguments = {"std": 1.0, "sample_interval": 0.1, "seed": 1} | kwargs

@@ -230,6 +230,7 @@ def test_prbs_value_depends_only_on_seed_and_bit_index():
     assert [PRBS(1.0, 0.3, 9, 10).value(k * 0.3 + 0.1) for k in range(100)] == [a.value(k * 0.1 + 0.05) for k in range(100)]
     assert [PRBS(seed=9, register_length=10).bit(k) for k in range(64)] != [PRBS(seed=10, register_length=10).bit(k)
                                                                           for k in range(64)]
+    assert [PRBS(seed=9.0, register_length=10.0).bit(k) for k in range(64)] == [a.bit(k) for k in range(64)]
     assert interval_index(-0.5, 0.1) == 0 and interval_index(0.3, 0.1) == 3
 
 
@@ -309,7 +310,8 @@ def test_csv_missing_file_is_named(tmp_path):
     (lambda: PRBS(register_length=7.5), r"^register_length: "),
     (lambda: PRBS(seed=0), r"^seed: expected an integer from 1 to 2\^7 - 1 = 127, got 0"),
     (lambda: PRBS(seed=128), r"^seed: .* got 128"),
-    (lambda: PRBS(seed=1.0), r"^seed: "),
+    (lambda: PRBS(seed=1.5), r"^seed: "),
+    (lambda: PRBS(seed=True), r"^seed: "),
     (lambda: Table([0, 1, 1], [1, 2, 3]), r"^times: must be strictly increasing, entry 3 \(1\) is not after entry 2"),
     (lambda: Table([0, 1], [1, 2, 3]), r"^values: expected 2 entries"),
     (lambda: Table([], []), r"^times: expected at least one entry"),

@@ -2,14 +2,15 @@
 
 from __future__ import annotations
 
+import math
 from typing import Mapping
 
 import numpy as np
 
 from observers.block import Block, Segment
-from observers.checks import as_vector
+from observers.checks import ParameterError, as_vector
 
-__all__ = ["BOUNDARY_TOLERANCE", "interval_index", "scalar_parameter", "Source", "PiecewiseConstant"]
+__all__ = ["BOUNDARY_TOLERANCE", "interval_index", "scalar_parameter", "integer_parameter", "Source", "PiecewiseConstant"]
 
 #: fraction of an interval within which a time counts as on the next boundary
 BOUNDARY_TOLERANCE = 1e-9
@@ -25,6 +26,18 @@ def interval_index(t, dt: float):
 def scalar_parameter(name: str, value) -> float:
     """``value`` as one finite float; :class:`ParameterError` naming ``name`` otherwise."""
     return float(as_vector(name, value, 1)[0])
+
+
+def integer_parameter(name: str, value, low: int, high: int | None = None, expected: str | None = None) -> int:
+    """``value`` as an int in ``[low, high]`` (an integral float such as an FMU's 7.0 is accepted, a bool
+    is not); :class:`ParameterError` naming ``name`` and saying ``expected`` (by default: "an integer >=
+    low") otherwise."""
+    integral = (isinstance(value, (int, np.integer)) or (isinstance(value, (float, np.floating))
+                                                         and math.isfinite(value) and value == int(value))) \
+        and not isinstance(value, bool)
+    if not integral or value < low or (high is not None and value > high):
+        raise ParameterError(f"{name}: expected {expected or f'an integer >= {low}'}, got {value!r}")
+    return int(value)
 
 
 class Source(Block):

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from observers.checks import ParameterError, require_positive
+from observers.checks import require_positive
 
-from .base import PiecewiseConstant, interval_index, scalar_parameter
+from .base import PiecewiseConstant, integer_parameter, interval_index, scalar_parameter
 
 __all__ = ["PRIMITIVE_TAPS", "PRBS"]
 
@@ -52,12 +52,9 @@ class PRBS(PiecewiseConstant):
         super().__init__()
         self.amplitude, self.offset = scalar_parameter("amplitude", amplitude), scalar_parameter("offset", offset)
         self.bit_period = require_positive("bit_period", bit_period)
-        if register_length not in PRIMITIVE_TAPS or int(register_length) != register_length:
-            raise ParameterError(f"register_length: expected an integer from 2 to 32, got {register_length!r}")
-        n = self.register_length = int(register_length)
-        if not isinstance(seed, (int, np.integer)) or isinstance(seed, bool) or not 1 <= seed < 2 ** n:
-            raise ParameterError(f"seed: expected an integer from 1 to 2^{n} - 1 = {2 ** n - 1}, got {seed!r}")
-        self.seed = int(seed)
+        n = self.register_length = integer_parameter("register_length", register_length, 2, 32,
+                                                     "an integer from 2 to 32")
+        self.seed = integer_parameter("seed", seed, 1, 2 ** n - 1, f"an integer from 1 to 2^{n} - 1 = {2 ** n - 1}")
         # bit j of the polynomial = coefficient of x^j, the leading x^n included
         self._polynomial = (1 << n) | sum(1 << (n - tap) for tap in PRIMITIVE_TAPS[n])
 
