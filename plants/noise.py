@@ -146,8 +146,8 @@ class Noise:
             reached = (k // CHECKPOINT) * CHECKPOINT
             x = self._checkpoints[reached]
         if k - reached > self.interval_budget:
-            raise BudgetError(f"interval_budget: interval {k} needs {k - reached} filter steps from interval {reached}, "
-                              f"more than the budget of {self.interval_budget}")
+            raise BudgetError(f"interval_budget: interval {k} needs {k - reached} filter steps from interval "
+                              f"{reached}, more than the budget of {self.interval_budget}")
         Ad, Bd = self.filter
         while reached < k:
             x = Ad @ x + Bd * self.white(reached)

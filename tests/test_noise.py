@@ -137,7 +137,8 @@ def test_an_evaluation_beyond_the_interval_budget_is_refused_before_any_work():
         noise(9.01)
     with pytest.raises(BudgetError, match=r"^interval_budget: "):
         noise(1e300)                                                # capped index, no overflow, no hang
-    assert noise(4.0).tolist() == first.tolist() and noise(9.0).tolist() == Noise(1.0, 0.01, 3, cutoff_hz=1.0)(9.0).tolist()
+    assert noise(4.0).tolist() == first.tolist()
+    assert noise(9.0).tolist() == Noise(1.0, 0.01, 3, cutoff_hz=1.0)(9.0).tolist()
     assert Noise(1.0, 0.01, 3)(math.nan).tolist() == Noise(1.0, 0.01, 3)(0.0).tolist()
 
 

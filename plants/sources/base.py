@@ -10,7 +10,8 @@ import numpy as np
 from observers.block import Block, Segment
 from observers.checks import ParameterError, as_vector
 
-__all__ = ["BOUNDARY_TOLERANCE", "interval_index", "scalar_parameter", "integer_parameter", "Source", "PiecewiseConstant"]
+__all__ = ["BOUNDARY_TOLERANCE", "interval_index", "scalar_parameter", "integer_parameter", "Source",
+           "PiecewiseConstant"]
 
 #: fraction of an interval within which a time counts as on the next boundary
 BOUNDARY_TOLERANCE = 1e-9

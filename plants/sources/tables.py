@@ -114,7 +114,8 @@ class CsvColumn(Table):
                 continue
             time, value = (self._cell(row, index, name, line) for index, name in picked)
             if previous is not None and time <= previous[1]:
-                raise ParameterError(f"{self.path}: row {line}: time {time:g} is not after {previous[1]:g} of row {previous[0]}")
+                raise ParameterError(f"{self.path}: row {line}: time {time:g} is not after "
+                                     f"{previous[1]:g} of row {previous[0]}")
             previous = (line, time)
             times.append(time)
             values.append(value)

@@ -47,7 +47,8 @@ class Step(PiecewiseConstant):
 
     def __init__(self, time: float = 0.0, height: float = 1.0, offset: float = 0.0):
         super().__init__()
-        self.time, self.height, self.offset = scalar_parameter("time", time), scalar_parameter("height", height), scalar_parameter("offset", offset)
+        self.time, self.height = scalar_parameter("time", time), scalar_parameter("height", height)
+        self.offset = scalar_parameter("offset", offset)
 
     def value(self, t):
         return self.offset + self.height * (np.asarray(t, dtype=float) >= self.time)
@@ -106,7 +107,8 @@ class MultiSine(Source):
 
     not_state = ("amplitudes", "omega", "phases", "offset")
 
-    def __init__(self, amplitudes, frequencies_hz, phases=None, offset: float = 0.0, names=("amplitudes", "frequencies_hz", "phases")):
+    def __init__(self, amplitudes, frequencies_hz, phases=None, offset: float = 0.0,
+                 names=("amplitudes", "frequencies_hz", "phases")):
         super().__init__()
         self.amplitudes = as_vector(names[0], amplitudes)
         count = self.amplitudes.size
@@ -173,10 +175,11 @@ class Chirp(Source):
 
     not_state = ("amplitude", "f0", "f1", "t0", "t1", "sweep", "after", "phase", "offset")
 
-    def __init__(self, amplitude: float = 1.0, f0_hz: float = 0.1, f1_hz: float = 10.0, t0: float = 0.0, t1: float = 10.0,
-                 sweep: str = "linear", after: str = "hold", phase: float = 0.0, offset: float = 0.0):
+    def __init__(self, amplitude: float = 1.0, f0_hz: float = 0.1, f1_hz: float = 10.0, t0: float = 0.0,
+                 t1: float = 10.0, sweep: str = "linear", after: str = "hold", phase: float = 0.0, offset: float = 0.0):
         super().__init__()
-        self.amplitude, self.phase, self.offset = scalar_parameter("amplitude", amplitude), scalar_parameter("phase", phase), scalar_parameter("offset", offset)
+        self.amplitude, self.phase = scalar_parameter("amplitude", amplitude), scalar_parameter("phase", phase)
+        self.offset = scalar_parameter("offset", offset)
         if sweep not in ("linear", "exponential"):
             raise ParameterError(f"sweep: expected 'linear' or 'exponential', got {sweep!r}")
         if after not in ("hold", "stop"):
