@@ -16,8 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from fmus.definition import FmuDefinition
-from fmus.kinds import create_block, module_of
+from fmus.runtime.definition import FmuDefinition
+from fmus.runtime.kinds import create_block, module_of
 from fmus.master import Connection, communication_points
 from observers.block import Segment
 

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from fmus.kinds.signals import source_definition
+from fmus.runtime.kinds.signals import source_definition
 from fmus.master import Connection
 
 __all__ = ["chain_config", "modes_config", "input_system"]

@@ -1,7 +1,5 @@
-"""The FMI layer: FMU definitions, the generic slave adapter, the builder,
+"""The FMI layer: the FMU runtime (:mod:`fmus.runtime`, bundled in every FMU), the builder,
 the co-simulation master, scenarios and the command line.
 
-Importing this package is cheap and does not import fmpy; the bundled copy
-inside every FMU only needs ``fmus.definition``, ``fmus.kinds``, ``fmus.bundle``
-and ``fmus.slave``.
+Importing this package is cheap and does not import fmpy; every FMU bundles this file.
 """

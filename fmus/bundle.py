@@ -11,42 +11,22 @@ of the syntax tree, layout and line numbers kept)::
 so FMUs built from different code never share a module, and an FMU never runs the host's own
 ``fmus`` (or a checkout's).  FMUs built from the same code share the package.
 
-At run time the two places that import project modules by name -- :func:`fmus.callables.resolve`
-(``"plants.paper001:f_sin"``) and :func:`fmus.kinds.create_block` (``kind_module``) -- map the
-name onto the FMU's own package with :func:`local_name`.  Unrelocated (a checkout or an installed
-obsfmu) :data:`PACKAGE` is ``""`` and names stay as they are.
+At run time the FMU maps project module names onto its own package with
+:mod:`fmus.runtime.bundled` (bundled; this module, the relocation, is not).
 """
 
 from __future__ import annotations
 
 import ast
 import re
-import sys
 
-__all__ = ["PACKAGE", "NAMES", "local_name", "portable_name", "relocate", "package_init", "RelocationError"]
+from .runtime.bundled import NAMES
 
-_OWN = "fmus.bundle"
-#: the FMU's package (``"_obsfmu_<hash>"``) when this module runs relocated inside an FMU, else ""
-PACKAGE = __name__[: -len(_OWN) - 1] if __name__.endswith("." + _OWN) else ""
-#: attribute of the relocated package listing the bundled top-level names
-NAMES = "BUNDLED"
+__all__ = ["relocate", "package_init", "RelocationError"]
 
 
 class RelocationError(ValueError):
     """A bundled source uses an import the builder cannot relocate; the message says how to write it."""
-
-
-def local_name(module: str) -> str:
-    """The name under which ``module`` (e.g. ``"plants.paper001"``) is imported here."""
-    if PACKAGE and module.split(".")[0] in getattr(sys.modules.get(PACKAGE), NAMES, ()):
-        return f"{PACKAGE}.{module}"
-    return module
-
-
-def portable_name(module: str) -> str:
-    """The inverse of :func:`local_name`: ``"_obsfmu_<hash>.plants.x"`` -> ``"plants.x"``."""
-    prefix = PACKAGE + "."
-    return module[len(prefix):] if PACKAGE and module.startswith(prefix) else module
 
 
 def package_init(names) -> str:

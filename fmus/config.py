@@ -52,8 +52,8 @@ from observers.modal import (MAX_TRANSIENT_GROWTH, desired_poles, is_controllabl
                              place, transient_growth)
 from observers.standard_forms import FORMS
 
-from .definition import FmuDefinition, valid_identifier
-from .kinds.linear import feedback_definition, observer_definition, plant_definition
+from .runtime.definition import FmuDefinition, valid_identifier
+from .runtime.kinds.linear import feedback_definition, observer_definition, plant_definition
 
 if sys.version_info >= (3, 11):
     import tomllib

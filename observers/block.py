@@ -2,7 +2,7 @@
 
 A *block* is a causal dynamic system advanced over communication steps.  It
 is plain Python/numpy, usable without FMI; the FMU adapter in
-``fmus/slave.py`` wraps any block generically.
+``fmus/runtime/slave`` wraps any block generically.
 
 * ``outputs(t, inputs)`` returns the outputs at the current time ``t`` as a
   dict of 1-D arrays.  A block whose outputs depend on its current inputs

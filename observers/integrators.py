@@ -28,7 +28,7 @@ import numpy as np
 
 from .checks import ParameterError, SignalError
 
-__all__ = ["LinearPropagator", "rk4_step", "expm", "substep_count", "require_budget", "BudgetError",
+__all__ = ["LinearPropagator", "rk4_step", "expm", "substep_count", "sample_count", "require_budget", "BudgetError",
            "DEFAULT_SUBSTEP_BUDGET"]
 
 #: default of every block's ``substep_budget``: sub-steps one communication step may take
@@ -68,6 +68,22 @@ def substep_count(h: float, max_substep: float = math.inf, rate: float = 0.0, ma
         raise BudgetError(f"substep_budget: the step h = {h:g} needs {needed:.3g} {why}, more than "
                           f"substep_budget = {budget}; take a shorter step or raise substep_budget")
     return max(1, math.ceil(by_length - 1e-9), math.ceil(by_change - 1e-9))
+
+
+def sample_count(h: float, sample_time: float, budget: int = DEFAULT_SUBSTEP_BUDGET) -> int:
+    """Number of samples of a discrete block (sample time ``T``) in a communication step ``h``.
+
+    A step must cover whole samples (to a relative 1e-9): else :class:`SignalError` naming
+    ``sample_time``; more than ``budget`` samples: :class:`BudgetError`.  Call it before any work.
+    """
+    count = round(h / sample_time) if math.isfinite(h) else 0
+    if count < 1 or not math.isclose(count * sample_time, h, rel_tol=1e-9):
+        raise SignalError(f"sample_time: a step of a discrete block covers whole samples of T = {sample_time:g}; "
+                          f"h = {h:g} is {h / sample_time:.6g} samples")
+    if count > budget:
+        raise BudgetError(f"substep_budget: the step h = {h:g} is {count} samples of T = {sample_time:g}, more "
+                          f"than substep_budget = {budget}")
+    return count
 
 
 #: Pade degree m -> (largest scaled size for which the [m/m] Pade approximant of expm is accurate to

@@ -43,6 +43,7 @@ import numpy as np
 
 from .checks import ParameterError, as_matrix, as_vector, require_square
 from .standard_forms import standard_poles
+from .lti_model import StateSpace
 
 __all__ = [
     "controllability_matrix",
@@ -338,22 +339,32 @@ def desired_poles(n: int, *, poles=None, t_settle=None, form: str = "binomial", 
     return standard_poles(n, t_settle, form)
 
 
-def design_state_feedback(A, B, *, poles=None, t_settle=None, form: str = "binomial") -> np.ndarray:
+def design_state_feedback(A, B=None, *, poles=None, t_settle=None, form: str = "binomial") -> np.ndarray:
     """Modal controller ``K`` for ``u = -K x``: explicit poles or a standard form.
+
+    ``A`` may be a whole system (``B`` omitted): a ``control.StateSpace`` or an ``(A, B, C, D)`` tuple.
 
     >>> design_state_feedback([[0, 1], [-2, 3]], [[0], [1]], t_settle=0.3)   # paper 002
     array([[398.,  43.]])
     """
+    if B is None:
+        model = StateSpace.of(A)
+        A, B = model.A, model.B
     A = require_square("A", A)
     return place(A, B, desired_poles(A.shape[0], poles=poles, t_settle=t_settle, form=form))
 
 
-def design_observer(A, C, *, poles=None, t_settle=None, form: str = "binomial") -> np.ndarray:
+def design_observer(A, C=None, *, poles=None, t_settle=None, form: str = "binomial") -> np.ndarray:
     """Observer gain ``N`` for ``x_hat' = A x_hat + B u + N (y - C x_hat)``.
+
+    ``A`` may be a whole system (``C`` omitted): a ``control.StateSpace`` or an ``(A, B, C, D)`` tuple.
 
     >>> design_observer([[0, 1], [-2, 3]], [[1, 0]], t_settle=0.15)        # paper 002
     array([[  83.],
            [1847.]])
     """
+    if C is None:
+        model = StateSpace.of(A)
+        A, C = model.A, model.C
     A = require_square("A", A)
     return observer_gain(A, C, desired_poles(A.shape[0], poles=poles, t_settle=t_settle, form=form))

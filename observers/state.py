@@ -14,7 +14,7 @@ writes its own ``get_state``; a class declares once what is not state:
 :func:`capture` turns the state into a *tree* of plain data: ``dict`` (one per object, keyed by
 attribute), ``list``, ``tuple``, numpy arrays of the dtypes in :data:`DTYPES`, ``float``,
 ``int``, ``bool``, ``str`` and ``None``.  Nothing else is accepted, so a tree can always be
-written by :mod:`fmus.state_format` and never names a class.
+written by :mod:`fmus.runtime.state_format` and never names a class.
 
 :func:`restore` puts a tree back by assigning into the *existing* objects of the block: every
 object, list length, array shape and dtype must match what the block has.  An attribute that

@@ -1,8 +1,9 @@
-"""Linear time-invariant plant ``x' = A x + B u``, ``y = C x + D u``.
+"""Linear time-invariant plant ``x' = A x + B u`` (or ``x[k+1] = A x[k] + B u[k]``), ``y = C x + D u``.
 
 The true state is an output too, so estimation errors ``x - x_hat`` can be
-computed.  A step is integrated exactly for an input that is held or linear
-over the step (:class:`~observers.integrators.LinearPropagator`).
+computed.  A continuous step is integrated exactly for an input that is held or linear
+over the step (:class:`~observers.integrators.LinearPropagator`); a discrete plant (sample
+time ``dt``) takes the samples a step covers, ``u[k]`` the input at ``t_k``.
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ import numpy as np
 
 from observers.block import Block, Segment
 from observers.checks import as_vector
-from observers.integrators import LinearPropagator
+from observers.integrators import DEFAULT_SUBSTEP_BUDGET, LinearPropagator, require_budget, sample_count
 from observers.lti_model import StateSpace
 
 __all__ = ["LTIPlant"]
@@ -22,18 +23,21 @@ __all__ = ["LTIPlant"]
 class LTIPlant(Block):
     """LTI plant with initial state ``x0``.
 
-    Ports: input ``u`` (m); outputs ``y`` (p) and ``x`` (n).
+    Ports: input ``u`` (m); outputs ``y`` (p) and ``x`` (n).  ``A`` may be a whole system
+    (:meth:`observers.lti_model.StateSpace.of`: a ``control.StateSpace``, continuous or discrete).
     """
 
-    not_state = ("model", "_propagator")
+    not_state = ("model", "_propagator", "substep_budget")
 
-    def __init__(self, A, B=None, C=None, D=None, x0=None):
-        self.model = StateSpace.checked(A, B, C, D)
+    def __init__(self, A, B=None, C=None, D=None, x0=None, substep_budget: int = DEFAULT_SUBSTEP_BUDGET):
+        is_system = B is None and C is None and D is None and not isinstance(A, (list, np.ndarray))
+        self.model = StateSpace.of(A) if is_system else StateSpace.checked(A, B, C, D)
+        self.substep_budget = require_budget(substep_budget)
         self.x = np.zeros(self.model.n) if x0 is None else as_vector("x0", x0, self.model.n)
         self.feedthrough = bool(np.any(self.model.D))
         self.input_sizes = {"u": self.model.m}
         self.output_sizes = {"y": self.model.p, "x": self.model.n}
-        self._propagator = LinearPropagator(self.model.A, self.model.B)
+        self._propagator = None if self.model.discrete else LinearPropagator(self.model.A, self.model.B)
 
     def outputs(self, t: float, inputs: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
         y = self.model.C @ self.x
@@ -43,4 +47,10 @@ class LTIPlant(Block):
 
     def advance(self, t: float, h: float, inputs: Mapping[str, Segment]) -> None:
         u = inputs["u"]
-        self.x = self._propagator.step(self.x, h, u.start, u.slope)
+        if self._propagator is not None:
+            self.x = self._propagator.step(self.x, h, u.start, u.slope)
+            return
+        A, B, T, x = self.model.A, self.model.B, self.model.dt, self.x
+        for k in range(sample_count(h, T, self.substep_budget)):
+            x = A @ x + B @ (u.start + (k * T) * u.slope)
+        self.x = x

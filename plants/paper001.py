@@ -1,7 +1,7 @@
 """The model functions of paper 001's example (Kozachek, Bobtsov, Nikolaev 2023).
 
 Referenced from FMU definitions as ``"plants.paper001:<name>"`` (see
-:mod:`fmus.callables`); the ``plants`` package is bundled into every FMU, so
+:mod:`fmus.runtime.callables`); the ``plants`` package is bundled into every FMU, so
 these need no ``extra_modules``.  Write your own functions with the same
 signatures in a module of yours to observe another plant of the class
 

@@ -47,7 +47,7 @@ def faulty_fmus(build_dir):
     from pathlib import Path
 
     from fmus.builder import build_fmu
-    from fmus.kinds.gpebo import generator_plant_definition
+    from fmus.runtime.kinds.gpebo import generator_plant_definition
 
     module = Path(__file__).with_name("faulty_user_function.py")
     definition = generator_plant_definition("faulty_plant", Ts=1e-3, f="faulty_user_function:f")

@@ -20,7 +20,7 @@ from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFr
                        fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
 
 from fmus.scenarios import SCENARIOS, ensure_fmus
-from fmus.state_format import decode, encode
+from fmus.runtime.state_format import decode, encode
 
 OK, WARNING, DISCARD, ERROR, FATAL = 0, 1, 2, 3, 4
 BAD_VALUES = [float("nan"), float("inf"), -float("inf"), 1e308, -1e308]

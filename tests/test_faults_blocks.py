@@ -16,7 +16,7 @@ from collections import deque
 import numpy as np
 import pytest
 
-from fmus.kinds import create_block
+from fmus.runtime.kinds import create_block
 from fmus.scenarios import SCENARIOS
 from observers.block import Block, Segment
 from observers.integrators import BudgetError, require_budget, substep_count

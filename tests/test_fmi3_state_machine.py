@@ -19,7 +19,7 @@ from fmpy.fmi2 import FMU2Slave
 from fmpy.fmi3 import FMU3Slave
 
 from fmi3_support import DISCARD, ERROR, OK, WARNING, Raw
-from fmus.state_format import decode, pack
+from fmus.runtime.state_format import decode, pack
 
 STATES = ["instantiated", "initializationMode", "stepMode", "terminated"]
 EVERY = set(STATES)
@@ -225,7 +225,7 @@ def fmi2_state_of_the_ship_plant(ship_fmus) -> bytes:
 
 
 def tree_of(data: bytes) -> tuple[str, dict]:
-    """The identity and the tree of serialized state bytes (fmus/state_format.py: 24-byte header, digest)."""
+    """The identity and the tree of serialized state bytes (fmus/runtime/state_format.py: 24-byte header, digest)."""
     size = struct.unpack_from("<I", data, 12)[0]
     return data[56:56 + size].decode(), decode(data[56 + size:])
 

@@ -12,7 +12,7 @@ from fmpy.fmi2 import FMU2Slave
 from fmpy.validation import validate_fmu
 
 from fmus import cli
-from fmus.kinds.ltv import ltv_observer_definition, ltv_plant_definition
+from fmus.runtime.kinds.ltv import ltv_observer_definition, ltv_plant_definition
 from fmus.master import SimulationError
 from fmus.metrics import time_to_stay_below
 from fmus.result import Result

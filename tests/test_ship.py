@@ -106,7 +106,7 @@ def test_summary_settling_times(build_dir):
 def test_nomoto_observer_from_toml_decays_as_its_poles_say(tmp_path):
     """A different plant (3rd-order Nomoto model) from a TOML file, through the CLI and the master."""
     from fmus.config import design_from_config, load_config
-    from fmus.kinds.signals import source_definition
+    from fmus.runtime.kinds.signals import source_definition
     from fmus.builder import build_fmu
     from fmus.master import Component, Connection, System, cosimulate
 

@@ -13,7 +13,7 @@ from pythonfmu import Fmi2Slave
 from pythonfmu.variables import Real
 
 from fmus.config import design_from_config
-from fmus.slave import BlockSlave, Refused
+from fmus.runtime.slave import BlockSlave, Refused
 
 
 @pytest.fixture()

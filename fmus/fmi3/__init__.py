@@ -1,6 +1,6 @@
 """FMI 3.0 co-simulation FMUs from the same definitions as the FMI 2.0 ones (docs/fmi3.md).
 
-One definition (:class:`~fmus.definition.FmuDefinition`), one slave (:class:`fmus.slave.BlockSlave`,
+One definition (:class:`~fmus.runtime.definition.FmuDefinition`), one slave (:class:`fmus.runtime.slave.BlockSlave`,
 the same Python behaviour), two front ends:
 
 * FMI 2.0: pythonfmu's description of the slave, scalar variables ``x_hat[1]``, ``A[1,2]``;

@@ -1,6 +1,6 @@
 """The FMI 3.0 ``modelDescription.xml`` of an FMU, from its definition and its slave's FMI 2.0 variables.
 
-The slave (:class:`fmus.slave.BlockSlave`) is the same for both FMI versions; its variables are
+The slave (:class:`fmus.runtime.slave.BlockSlave`) is the same for both FMI versions; its variables are
 scalars with FMI 2.0 names and value references (``x_hat[1]`` -> 12).  This module groups them
 back into the arrays of the definition -- the narrow interface to the slave is its FMI 2.0
 description (names and value references), nothing else:
@@ -10,7 +10,7 @@ description (names and value references), nothing else:
 * a port ``x_hat`` of size n -> ``<Float64 name="x_hat">`` with one ``<Dimension start="n">``;
 * a size-one dimension dropped in the FMI 2.0 names (``u``, ``B[i]``) is dropped here too, so a
   scalar stays a scalar and every FMI 2.0 name is ``<FMI 3.0 name>[<indices>]`` or the name itself
-  (:func:`fmus.definition.element_names`);
+  (:func:`fmus.runtime.definition.element_names`);
 * ``<port>_interpolation`` -> an Int32 parameter (0 hold, 1 extrapolate, 2 interpolate);
 * ``time`` -> the independent variable (value reference 0).
 
@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 from xml.dom.minidom import parseString
 from xml.etree.ElementTree import Element, SubElement, fromstring, tostring
 
-from ..definition import FmuDefinition, element_names
+from ..runtime.definition import FmuDefinition, element_names
 
 __all__ = ["Variable", "variables", "describe", "table", "read_table", "CAPABILITIES"]
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ..definition import element_names
+from ..runtime.definition import element_names
 
 __all__ = ["Element", "elements", "scalar_variables"]
 

@@ -1,5 +1,5 @@
 /*
- * The BRIDGE of an obsfmu FMU: the FMI 2.0 calls -> the generic Python slave (fmus/slave.py,
+ * The BRIDGE of an obsfmu FMU: the FMI 2.0 calls -> the generic Python slave (fmus/runtime/slave,
  * a pythonfmu Fmi2Slave), compiled against one Python version's headers.
  *
  * It is loaded by the LOADER (loader.c) with RTLD_LOCAL once libpython's symbols are global
@@ -235,7 +235,7 @@ static int add_squares(PyObject *item, double *sum)
  * in `previous` (a list of the same length, or None), and of the list `floats` (or None) is finite and at most
  * `bound` in magnitude, as their sum of squares shows; False when that sum does not show it (a number that is
  * not finite, or large ones), None when an item is of another kind or `previous` of another length.  Only True
- * decides: the caller tests anything else number by number (fmus/slave.py; the same test as
+ * decides: the caller tests anything else number by number (fmus/runtime/slave/step.py; the same test as
  * observers.state.within_bound, without concatenating the arrays: issue 14). */
 static PyObject *native_within(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {

@@ -8,7 +8,7 @@
  *     rule that a FAILED call moves the instance to the version's failure state while a call the
  *     slave REFUSED (it changed nothing) leaves it where it was (after());
  *   - FMU states: the slave's, which hold the loader's fields (FMI version, state machine state; the
- *     time is the slave's): one serialized format, the slave's (fmus/state_format.py), with one
+ *     time is the slave's): one serialized format, the slave's (fmus/runtime/state_format.py), with one
  *     identity check and one checksum; the loader validates its fields whenever a state comes back.
  *
  * Each loader includes this file once; everything here is static (nothing is exported).
@@ -287,7 +287,7 @@ static fmi2Status after(Core *c, fmi2Status status)
 /* An FMU state is the slave's (an object of the bridge): it holds the loader's fields, which the
  * loader hands over when the state is saved and validates whenever a state comes back (set or
  * deserialized: a state of this FMI version, a known state machine state that agrees with the
- * slave's initialization).  The serialized form is the slave's alone (fmus/state_format.py: format
+ * slave's initialization).  The serialized form is the slave's alone (fmus/runtime/state_format.py: format
  * version, identity = model name and GUID / instantiationToken, SHA-256 of everything). */
 
 static unsigned state_bit(const Version *version, const char *name)

@@ -25,7 +25,7 @@
 #define OBSFMU_BRIDGE_SYMBOL "obsfmu_bridge"
 #define OBSFMU_BRIDGE_ABI 3
 
-/* What the loader keeps in an FMU state (one serialized format: the slave's, fmus/state_format.py).
+/* What the loader keeps in an FMU state (one serialized format: the slave's, fmus/runtime/state_format.py).
  * The loader hands `fmi` and `state` to the slave's getFMUstate; machineOf() gives them back from any
  * state (one it saved, or one the slave deserialized and checked), with the slave's own `time` and
  * `initialized` (the state was saved after exitInitializationMode), for the loader to validate. */

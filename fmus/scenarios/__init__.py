@@ -25,7 +25,7 @@ from fmpy import read_model_description
 from ..builder import build_fmu, is_current
 from ..fmi3 import build_folder
 from ..fmi3.elements import scalar_variables
-from ..definition import FmuDefinition
+from ..runtime.definition import FmuDefinition
 from ..master import Component, Connection, Recorder, Session, SimulationError, System
 from ..result import Result, RunInfo
 

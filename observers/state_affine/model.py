@@ -16,7 +16,7 @@ Paper 004 (Bespalov, Vedyakov 2023) considers plants (1) ``x' = f(x, u, theta_p)
 * a left inverse ``x = phi_L(chi)`` (Statement 3).
 
 :class:`StateAffineModel` holds these as Python callables (inside an FMU they are
-``"module:function"`` references, see :mod:`fmus.callables`) and checks every value they
+``"module:function"`` references, see :mod:`fmus.runtime.callables`) and checks every value they
 return against the declared dimensions, so a model that does not match is refused with a
 message naming the function.  ``Lambda`` is either
 

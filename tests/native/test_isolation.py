@@ -14,7 +14,7 @@ import textwrap
 import pytest
 
 from fmus.builder import PROJECT_ROOT, build_fmu
-from fmus.kinds.signals import source_definition
+from fmus.runtime.kinds.signals import source_definition
 from fmus.scenarios import ensure_fmus, get
 
 #: appended to plants/signals.py of a copy of the project: that copy's sources output 1000 more
@@ -49,7 +49,7 @@ def variants(tmp_path_factory):
         import fmus
         assert fmus.__file__.startswith(sys.argv[1]), fmus.__file__  # the copy, not this checkout
         from fmus.builder import build_fmu
-        from fmus.kinds.signals import source_definition
+        from fmus.runtime.kinds.signals import source_definition
         print(json.dumps(str(build_fmu(source_definition("variant_source", offset=0.5), sys.argv[2]))))
     """, str(copy), str(root / "variant"))
     return str(original), built
@@ -60,7 +60,7 @@ def test_two_code_variants_in_one_process(variants):
     original, variant = variants
     result = python("""
         import json, sys
-        import fmus.kinds.signals, plants.signals            # the host's own project code
+        import fmus.runtime.kinds.signals, plants.signals            # the host's own project code
         path_before, plain_before = list(sys.path), {m for m in sys.modules if m.split(".")[0] in
                                                       ("fmus", "observers", "plants", "pythonfmu")}
         from fmpy import extract, read_model_description, simulate_fmu
@@ -95,7 +95,7 @@ def test_two_code_variants_in_one_process(variants):
 
 def test_observers_of_two_kinds_one_after_the_other(build_dir):
     """Issue 12: simulate_fmu(ship_observer) then simulate_fmu(ltv_ls_observer) failed with
-    "No module named 'fmus.kinds.ltv'" -- the second FMU ran the first one's copy of the code."""
+    "No module named 'fmus.runtime.kinds.ltv'" -- the second FMU ran the first one's copy of the code."""
     paths = [ensure_fmus(get("ship"), build_dir)["ship_observer"], ensure_fmus(get("ltv-ls"), build_dir)["ltv_ls_observer"]]
     result = python("""
         import json, sys
@@ -113,7 +113,7 @@ def test_observers_of_two_kinds_one_after_the_other(build_dir):
 
 def test_user_modules_are_bundled_relocated_too(tmp_path):
     """A user's ``"module:function"`` module, importing a project module, runs from the FMU alone."""
-    from fmus.kinds.gpebo import generator_plant_definition
+    from fmus.runtime.kinds.gpebo import generator_plant_definition
 
     user = tmp_path / "usermodel.py"
     user.write_text("from plants.paper000 import sine\n\n\ndef doubled(y):\n    return 2.0 * sine(y)\n")

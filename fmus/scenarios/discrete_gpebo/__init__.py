@@ -50,8 +50,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ...kinds.gpebo import generator_plant_definition, gpebo_observer_definition
-from ...kinds.signals import source_definition
+from ...runtime.kinds.gpebo import generator_plant_definition, gpebo_observer_definition
+from ...runtime.kinds.signals import source_definition
 from ...master import Connection
 from ...metrics import NOT_REACHED, time_to_stay_below
 from ...plotting import Curve, Panel, figure

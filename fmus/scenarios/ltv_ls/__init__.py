@@ -64,8 +64,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ...kinds.ltv import ltv_observer_definition, ltv_plant_definition
-from ...kinds.signals import source_definition
+from ...runtime.kinds.ltv import ltv_observer_definition, ltv_plant_definition
+from ...runtime.kinds.signals import source_definition
 from ...master import Connection
 from ...metrics import format_time, time_to_stay_below
 from ...plotting import Curve, Panel, figure

@@ -44,8 +44,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ...kinds.signals import source_definition
-from ...kinds.state_affine import chemostat_definition, observer_definition
+from ...runtime.kinds.signals import source_definition
+from ...runtime.kinds.state_affine import chemostat_definition, observer_definition
 from ...master import Connection
 from ...result import Result
 from .. import Scenario, Summary

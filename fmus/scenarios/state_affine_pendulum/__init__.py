@@ -48,8 +48,8 @@ import numpy as np
 from observers.modal import observer_gain
 from plants.state_affine import PENDULUM_C, PENDULUM_LAMBDA
 
-from ...kinds.signals import source_definition
-from ...kinds.state_affine import observer_definition, pendulum_definition
+from ...runtime.kinds.signals import source_definition
+from ...runtime.kinds.state_affine import observer_definition, pendulum_definition
 from ...master import Connection
 from ...result import Result
 from .. import Scenario, Summary

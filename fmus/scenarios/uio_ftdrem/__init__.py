@@ -47,7 +47,7 @@ import numpy as np
 
 from observers.uio import UIODesign, uio_gain
 
-from ...kinds.uio import ltv_plant_definition, uio_observer_definition
+from ...runtime.kinds.uio import ltv_plant_definition, uio_observer_definition
 from ...master import Connection
 from ...metrics import format_time, time_to_stay_below
 from ...plotting import Curve, Panel, figure

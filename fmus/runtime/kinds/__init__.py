@@ -4,8 +4,8 @@ A kind is a factory ``factory(params, options) -> Block`` where ``params``
 maps each parameter name to its array (full shape) and ``options`` holds the
 non-numeric build settings of the definition.  Factories are looked up by
 name from a fixed table -- never by evaluating a string.  Inside an FMU this package runs
-relocated (:mod:`fmus.bundle`): the ``kind_module`` a definition records (``"fmus.kinds.ltv"``)
-is imported from the FMU's own code.
+relocated (:mod:`fmus.runtime.bundled`): the ``kind_module`` a definition records
+(``"fmus.runtime.kinds.ltv"``) is imported from the FMU's own code.
 """
 
 from __future__ import annotations
@@ -20,12 +20,12 @@ import numpy as np
 from observers.block import Block
 from observers.checks import ParameterError
 
-from ..bundle import local_name, portable_name
+from ..bundled import local_name, portable_name
 
 Factory = Callable[[dict[str, np.ndarray], dict[str, Any]], Block]
 
 _FACTORIES: dict[str, Factory] = {}
-_PACKAGE = portable_name(__name__)  # "fmus.kinds", relocated or not
+_PACKAGE = portable_name(__name__)  # "fmus.runtime.kinds", relocated or not
 
 
 def register(name: str) -> Callable[[Factory], Factory]:

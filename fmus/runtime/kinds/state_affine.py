@@ -2,7 +2,7 @@
 
 * ``state-affine-observer`` -- :class:`~observers.state_affine.StateAffineObserver`; the user's
   functions are ``"module:function"`` references in the definition's options (resolved with
-  :func:`fmus.callables.resolve`, never evaluated); a constant ``Lambda`` (Statement 2) and its
+  :func:`fmus.runtime.callables.resolve`, never evaluated); a constant ``Lambda`` (Statement 2) and its
   ``C``, ``L`` are parameters, checked when the FMU is instantiated (observability of
   ``(Lambda, C)``, bounded filters).
 * ``state-affine-pendulum``, ``state-affine-chemostat`` -- the example plants of

@@ -3,7 +3,7 @@
 ``fmi2SerializeFMUstate`` / ``fmi3SerializeFMUState`` write, and the deserialize calls read, these
 bytes (little-endian throughout) -- the one serialized form of an obsfmu FMU state, for both FMI
 versions: the native binary keeps its own fields (FMI version, state machine state) in the payload
-(:meth:`fmus.slave.BlockSlave.get_fmu_state`) and validates them when the state comes back::
+(:meth:`fmus.runtime.slave.BlockSlave.get_fmu_state`) and validates them when the state comes back::
 
     header   magic b"OBSFMUst" | format version u16 | 0 u16 | identity length u32 | payload length u64
     digest   SHA-256 of header + identity + payload (32 bytes)

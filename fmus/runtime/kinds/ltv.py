@@ -1,7 +1,7 @@
 """Kinds for paper 001: the nonlinear LTV plant and its adaptive observer (least squares).
 
 The user's model functions ``A(t)``, ``L(t)``, ``f(y)`` are ``"module:function"`` references in
-the definition's ``options`` (resolved here with :func:`fmus.callables.resolve`, never
+the definition's ``options`` (resolved here with :func:`fmus.runtime.callables.resolve`, never
 evaluated); everything numeric is an FMU parameter.  The dimension ``n`` is fixed when the FMU
 is built; the paper's functions are in :mod:`plants.paper001`.
 """

@@ -7,7 +7,7 @@ reference ``"module:function"`` and the builder bundles the file into the
 FMU (``build_fmu(..., extra_modules=[path])``).  At run time
 :func:`resolve` imports the module and looks the name up -- the string is
 checked against a strict pattern and is never evaluated.  Inside an FMU the bundled modules
-run relocated (:mod:`fmus.bundle`): ``"plants.paper001:f_sin"`` then names the FMU's own copy.
+run relocated (:mod:`fmus.runtime.bundled`): ``"plants.paper001:f_sin"`` then names the FMU's own copy.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from collections.abc import Callable
 
 from observers.checks import ParameterError
 
-from .bundle import local_name, portable_name
+from .bundled import local_name, portable_name
 
 __all__ = ["reference", "resolve"]
 

@@ -1,7 +1,7 @@
 """Kinds for linear models (paper 002): LTI plant, Luenberger observer, state feedback.
 
 Each kind has a factory (FMU parameters -> block) and a definition function
-(design-time data -> :class:`~fmus.definition.FmuDefinition`).
+(design-time data -> :class:`~fmus.runtime.definition.FmuDefinition`).
 """
 
 from __future__ import annotations

@@ -1,9 +1,9 @@
 """What an FMU is made of, as data: the JSON file bundled in every FMU.
 
 An :class:`FmuDefinition` names a *kind* (a block factory registered in
-:mod:`fmus.kinds`), the start values of its parameters and the ports of the
+:mod:`fmus.runtime.kinds`), the start values of its parameters and the ports of the
 block.  The builder writes it next to a two-line slave module; the generic
-slave (:mod:`fmus.slave`) reads it back when the FMU is instantiated.
+slave (:mod:`fmus.runtime.slave`) reads it back when the FMU is instantiated.
 
 Naming (Modelica arrays, fixed when the FMU is built):
 

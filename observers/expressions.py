@@ -1,0 +1,347 @@
+"""A small, safe expression language for the right-hand sides a user writes in a system file.
+
+``dx/dt = f(x, u, t, p)``, ``y = h(x, u, t, p)``, ``x[k+1] = ...``: each component is one expression
+over the time ``t``, the vectors ``x``, ``u``, ``p`` (indexed from 1, as the FMU's variables
+``x[1]``, ``u[2]`` are), the named parameters of the file and the constants ``pi`` and ``e``::
+
+    -c * x[2] - k * x[1] - alpha * x[1] ** 3 + u[1]
+    where(x[1] > 0, sqrt(x[1]), 0)
+
+Grammar: numbers; ``+ - * / ** %``, unary ``-`` and ``+``; comparisons ``< <= > >= == !=`` (true is 1);
+``and``, ``or``, ``not``; the functions ``sin cos tan exp log sqrt abs sign tanh min max where``.
+Anything else -- attributes, strings, other calls, slices, lambdas, ``a if c else b`` -- is refused,
+naming the place (file, line, column) and the token.
+
+The text is parsed with :mod:`ast` and checked node by node against that grammar; the checked tree
+is turned into a tree of small Python closures over floats, once.  Nothing of the user's text is
+ever given to ``eval``, ``exec`` or ``compile``.  Size is bounded before parsing
+(:data:`MAX_LENGTH` characters, :data:`MAX_DEPTH` levels of nesting), so no text can make the parser
+or the evaluator run long or recurse deeply.  Domain errors (``log(-1)``, ``sqrt(-1)``) give NaN
+and overflows inf, as numpy does: the caller's finiteness checks name them.
+"""
+
+from __future__ import annotations
+
+import ast
+import math
+import operator
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .checks import ParameterError
+
+__all__ = ["ExpressionError", "Source", "Names", "compile_expression", "compile_vector", "VectorFunction", "FUNCTIONS",
+           "MAX_LENGTH", "MAX_DEPTH"]
+
+MAX_LENGTH = 4000      #: characters in one expression
+MAX_DEPTH = 60         #: nesting of brackets and of the expression tree
+VECTORS = ("x", "u", "p")
+CONSTANTS = {"pi": math.pi, "e": math.e}
+
+Evaluator = Callable[[float, np.ndarray, np.ndarray, np.ndarray], float]
+
+
+class ExpressionError(ParameterError):
+    """An expression outside the grammar; the message names the field, the place and the token."""
+
+
+@dataclass(frozen=True)
+class Source:
+    """Where an expression comes from: ``field`` (``plant.f[2]``), and optionally the file and the
+    line and column of the expression's first character in it."""
+    field: str
+    file: str | None = None
+    line: int | None = None
+    column: int | None = None
+
+    def at(self, node: ast.AST | None = None, line: int = 1, column: int = 0) -> str:
+        if node is not None:           # parsed in brackets: line 1 is one column to the right
+            line, column = getattr(node, "lineno", 1), getattr(node, "col_offset", 1)
+            column -= line == 1
+        if self.file is None:
+            return f"{self.field} (line {line}, column {column + 1} of the expression)"
+        first_line = self.line or 1
+        column += (self.column or 1) if line == 1 else 1
+        return f"{self.file}:{first_line + line - 1}:{column}: {self.field}"
+
+
+@dataclass(frozen=True)
+class Names:
+    """What an expression may name: the sizes of ``x``, ``u``, ``p`` (0: absent) and the named
+    parameters (name -> 1-based index into ``p``)."""
+    x: int = 0
+    u: int = 0
+    p: int = 0
+    parameters: Mapping[str, int] = field(default_factory=dict)
+    time: bool = True
+
+    def allowed(self) -> list[str]:
+        names = [v for v in VECTORS if getattr(self, v)] + (["t"] if self.time else [])
+        return names + sorted(self.parameters) + sorted(CONSTANTS)
+
+
+# ---------------------------------------------------------------------------------------- functions
+def _log(value: float) -> float:
+    return math.log(value) if value > 0 else (-math.inf if value == 0 else math.nan)
+
+
+def _sqrt(value: float) -> float:
+    return math.sqrt(value) if value >= 0 else math.nan
+
+
+def _exp(value: float) -> float:
+    try:
+        return math.exp(value)
+    except OverflowError:
+        return math.inf
+
+
+def _sign(value: float) -> float:
+    return 1.0 if value > 0 else -1.0 if value < 0 else 0.0 if value == 0 else math.nan
+
+
+def _tan(value: float) -> float:
+    return math.tan(value) if math.isfinite(value) else math.nan
+
+
+def _periodic(function):
+    return lambda value: function(value) if math.isfinite(value) else math.nan
+
+
+#: name -> (number of arguments, function of floats); ``where`` is handled apart (it is lazy)
+FUNCTIONS: dict[str, tuple[int, Callable]] = {
+    "sin": (1, _periodic(math.sin)), "cos": (1, _periodic(math.cos)), "tan": (1, _tan),
+    "exp": (1, _exp), "log": (1, _log), "sqrt": (1, _sqrt), "abs": (1, abs), "sign": (1, _sign),
+    "tanh": (1, math.tanh), "min": (2, min), "max": (2, max), "where": (3, None),
+}
+
+_BINARY = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul, ast.Div: operator.truediv,
+           ast.Pow: operator.pow, ast.Mod: operator.mod}
+_COMPARE = {ast.Lt: operator.lt, ast.LtE: operator.le, ast.Gt: operator.gt, ast.GtE: operator.ge,
+            ast.Eq: operator.eq, ast.NotEq: operator.ne}
+_HINTS = {ast.BitXor: "use ** for powers", ast.IfExp: "use where(condition, a, b)",
+          ast.Attribute: "parameters are named plainly (k, not p.k)", ast.Constant: "only numbers are allowed"}
+
+
+def _safe(function):
+    """``function`` with Python's arithmetic exceptions turned into numpy's results."""
+    def guarded(a, b):
+        try:
+            return function(a, b)
+        except ZeroDivisionError:
+            return math.nan if a == 0 or a != a else math.copysign(math.inf, a) * (1 if b >= 0 else -1)
+        except OverflowError:
+            return math.inf
+    return guarded
+
+
+def _power(base: float, exponent: float) -> float:
+    if base == 0 and exponent < 0:
+        return math.inf
+    result = base ** exponent
+    return math.nan if isinstance(result, complex) else result    # a negative base, a fractional exponent
+
+
+_ARITHMETIC = {kind: _safe(_power if kind is ast.Pow else function) for kind, function in _BINARY.items()}
+
+
+# ------------------------------------------------------------------------------------------ checking
+def _check_text(text, source: Source) -> str:
+    if not isinstance(text, str):
+        raise ExpressionError(f"{source.field}: expected an expression as a string, got {text!r}")
+    if len(text) > MAX_LENGTH:
+        raise ExpressionError(f"{source.field}: the expression has {len(text)} characters, more than the "
+                              f"limit of {MAX_LENGTH}")
+    depth = deepest = 0
+    for column, character in enumerate(text):
+        if character in "([":
+            depth += 1
+            deepest = max(deepest, depth)
+        elif character in ")]":
+            depth -= 1
+            if depth < 0:
+                raise ExpressionError(f"{source.field}: the bracket at character {column + 1} closes nothing")
+    if depth:
+        raise ExpressionError(f"{source.field}: {depth} bracket{'s' if depth > 1 else ''} not closed")
+    if deepest > MAX_DEPTH:
+        raise ExpressionError(f"{source.field}: brackets nested {deepest} deep, more than the limit of {MAX_DEPTH}")
+    if any(ord(c) < 32 and c not in "\t\n\r" for c in text):
+        raise ExpressionError(f"{source.field}: the expression holds a control character")
+    if not text.strip():
+        raise ExpressionError(f"{source.field}: the expression is empty")
+    return text
+
+
+def _parse(text: str, source: Source) -> ast.expr:
+    try:        # in brackets, so that an expression may span lines (the columns of line 1 shift by one)
+        tree = ast.parse("(" + text + "\n)", mode="eval")
+    except SyntaxError as exc:
+        line, column = exc.lineno or 1, (exc.offset or 1) - 1 - ((exc.lineno or 1) == 1)
+        lines = text.split("\n")
+        if line > len(lines):                          # in the closing bracket: the text ended too early
+            line, column = len(lines), len(lines[-1])
+        where = source.at(line=line, column=column)
+        raise ExpressionError(f"{where}: not a valid expression ({exc.msg})") from None
+    except (RecursionError, MemoryError, ValueError) as exc:
+        raise ExpressionError(f"{source.field}: the expression cannot be parsed ({type(exc).__name__})") from None
+    return tree.body
+
+
+def _token(node: ast.AST, text: str) -> str:
+    segment = ast.get_source_segment(text, node) or type(node).__name__
+    return segment if len(segment) <= 40 else segment[:37] + "..."
+
+
+class _Compiler:
+    """Checks one parsed expression against the grammar and builds its closure tree."""
+
+    def __init__(self, text: str, names: Names, source: Source):
+        self.text, self.names, self.source = "(" + text + "\n)", names, source
+        self.uses: set[str] = set()           # the vectors and names the expression reads
+
+    def refuse(self, node: ast.AST, what: str) -> ExpressionError:
+        return ExpressionError(f"{self.source.at(node)}: {what}: {_token(node, self.text)!r}")
+
+    def build(self, node: ast.AST, depth: int = 0) -> Evaluator:
+        if depth > MAX_DEPTH:
+            raise self.refuse(node, f"the expression is nested more than {MAX_DEPTH} deep")
+        method = getattr(self, "_" + type(node).__name__, None)
+        if method is None:
+            hint = next((h for kind, h in _HINTS.items() if isinstance(node, kind)
+                         or isinstance(getattr(node, "op", None), kind)), None)
+            raise self.refuse(node, "not allowed here" + (f" ({hint})" if hint else ""))
+        return method(node, depth + 1)
+
+    def _Constant(self, node: ast.Constant, depth: int) -> Evaluator:
+        value = node.value
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise self.refuse(node, "only numbers are allowed")
+        number = float(value)
+        if not math.isfinite(number):
+            raise self.refuse(node, "the number is not finite")
+        return lambda t, x, u, p: number
+
+    def _Name(self, node: ast.Name, depth: int) -> Evaluator:
+        name, names = node.id, self.names
+        self.uses.add(name)
+        if name == "t" and names.time:
+            return lambda t, x, u, p: t
+        if name in names.parameters:
+            index = names.parameters[name] - 1
+            return lambda t, x, u, p: p[index]
+        if name in CONSTANTS:
+            value = CONSTANTS[name]
+            return lambda t, x, u, p: value
+        if name in VECTORS and getattr(names, name):
+            raise self.refuse(node, f"{name} is a vector: index it, {name}[1] to {name}[{getattr(names, name)}]")
+        raise self.refuse(node, f"unknown name (allowed: {', '.join(self.names.allowed())})")
+
+    def _Subscript(self, node: ast.Subscript, depth: int) -> Evaluator:
+        vector = node.value.id if isinstance(node.value, ast.Name) else None
+        size = getattr(self.names, vector, 0) if vector in VECTORS else 0
+        if not size:
+            raise self.refuse(node, f"only {', '.join(v for v in VECTORS if getattr(self.names, v))} can be indexed")
+        index = node.slice
+        if not (isinstance(index, ast.Constant) and type(index.value) is int):
+            raise self.refuse(node, "an index must be a whole number")
+        if not 1 <= index.value <= size:
+            raise self.refuse(node, f"index out of range: {vector} has {size} entries, {vector}[1] to {vector}[{size}]"
+                              + (" (indices start at 1, as in the FMU's variable names)" if index.value == 0 else ""))
+        position = index.value - 1
+        self.uses.add(vector)
+        getter = {"x": lambda t, x, u, p: x[position], "u": lambda t, x, u, p: u[position],
+                  "p": lambda t, x, u, p: p[position]}
+        return getter[vector]
+
+    def _UnaryOp(self, node: ast.UnaryOp, depth: int) -> Evaluator:
+        operand = self.build(node.operand, depth)
+        if isinstance(node.op, ast.USub):
+            return lambda t, x, u, p: -operand(t, x, u, p)
+        if isinstance(node.op, ast.UAdd):
+            return operand
+        if isinstance(node.op, ast.Not):
+            return lambda t, x, u, p: float(not operand(t, x, u, p))
+        raise self.refuse(node, "operator not allowed")
+
+    def _BinOp(self, node: ast.BinOp, depth: int) -> Evaluator:
+        function = _ARITHMETIC.get(type(node.op))
+        if function is None:
+            hint = _HINTS.get(type(node.op))
+            raise self.refuse(node, "operator not allowed" + (f" ({hint})" if hint else ""))
+        left, right = self.build(node.left, depth), self.build(node.right, depth)
+        return lambda t, x, u, p: function(left(t, x, u, p), right(t, x, u, p))
+
+    def _Compare(self, node: ast.Compare, depth: int) -> Evaluator:
+        if len(node.ops) != 1:
+            raise self.refuse(node, "one comparison at a time (write a < b and b < c)")
+        function = _COMPARE[type(node.ops[0])] if type(node.ops[0]) in _COMPARE else None
+        if function is None:
+            raise self.refuse(node, "comparison not allowed")
+        left, right = self.build(node.left, depth), self.build(node.comparators[0], depth)
+        return lambda t, x, u, p: float(function(left(t, x, u, p), right(t, x, u, p)))
+
+    def _BoolOp(self, node: ast.BoolOp, depth: int) -> Evaluator:
+        parts = [self.build(value, depth) for value in node.values]
+        if isinstance(node.op, ast.And):
+            return lambda t, x, u, p: float(all(part(t, x, u, p) for part in parts))
+        return lambda t, x, u, p: float(any(part(t, x, u, p) for part in parts))
+
+    def _Call(self, node: ast.Call, depth: int) -> Evaluator:
+        name = node.func.id if isinstance(node.func, ast.Name) else None
+        if name not in FUNCTIONS:
+            raise self.refuse(node.func, f"unknown function (allowed: {', '.join(FUNCTIONS)})")
+        count, function = FUNCTIONS[name]
+        if node.keywords or len(node.args) != count or any(isinstance(a, ast.Starred) for a in node.args):
+            raise self.refuse(node, f"{name} takes {count} argument{'s' if count > 1 else ''}")
+        args = [self.build(argument, depth) for argument in node.args]
+        if name == "where":
+            condition, if_true, if_false = args
+            return lambda t, x, u, p: if_true(t, x, u, p) if condition(t, x, u, p) else if_false(t, x, u, p)
+        if count == 1:
+            (argument,) = args
+            return lambda t, x, u, p: float(function(argument(t, x, u, p)))
+        first, second = args
+        return lambda t, x, u, p: float(function(first(t, x, u, p), second(t, x, u, p)))
+
+
+def _compiled(text: str, names: Names, source: Source) -> tuple[Evaluator, set[str]]:
+    text = _check_text(text, source)
+    compiler = _Compiler(text, names, source)
+    return compiler.build(_parse(text, source)), compiler.uses
+
+
+def compile_expression(text: str, names: Names, source: Source) -> Evaluator:
+    """Check ``text`` against the grammar and return ``evaluate(t, x, u, p) -> float``.
+
+    :class:`ExpressionError` names the field, the place in the file and the token of the first
+    thing outside the grammar.
+    """
+    return _compiled(text, names, source)[0]
+
+
+class VectorFunction:
+    """Expressions, one per component, as ``f(t, x, u, p) -> float vector``; ``uses``: the names read."""
+
+    def __init__(self, parts: list[Evaluator], uses: set[str]):
+        self.parts, self.uses, self.size = parts, frozenset(uses), len(parts)
+
+    def __call__(self, t: float, x: np.ndarray, u: np.ndarray, p: np.ndarray) -> np.ndarray:
+        t, x, u, p = float(t), x.tolist(), u.tolist(), p.tolist()     # Python floats: several times faster
+        return np.array([part(t, x, u, p) for part in self.parts], dtype=float)
+
+
+def compile_vector(texts: Sequence[str], names: Names, source: Source, size: int | None = None) -> VectorFunction:
+    """``texts`` (one expression per component) as one :class:`VectorFunction`.
+
+    ``source.field`` names the whole vector (``plant.f``); each component is reported as
+    ``plant.f[i]``.  ``size``: the number of components required.
+    """
+    if isinstance(texts, str) or not isinstance(texts, Sequence):
+        raise ExpressionError(f"{source.field}: expected a list of expressions, one per component")
+    if size is not None and len(texts) != size:
+        raise ExpressionError(f"{source.field}: expected {size} expressions (one per component), got {len(texts)}")
+    compiled = [_compiled(text, names, Source(f"{source.field}[{i}]", source.file, source.line, source.column))
+                for i, text in enumerate(texts, start=1)]
+    return VectorFunction([part for part, _ in compiled], set().union(*(uses for _, uses in compiled)))

@@ -1,0 +1,92 @@
+"""A nonlinear plant written as expressions (:mod:`observers.expressions`): no code.
+
+Continuous::
+
+    dx/dt = f(t, x, u, p),    y = h(t, x, u, p)
+
+integrated with RK4 over equal sub-steps of at most ``max_substep``, the input taken linear over
+the communication step (``u(t + s) = start + s slope``), so a linearly coupled input is followed
+exactly and the accuracy does not depend on the master's step.
+
+Discrete, sample time ``T``::
+
+    x[k+1] = f(t_k, x[k], u[k], p),    y[k] = h(t_k, x[k], u[k], p)
+
+a communication step covers a whole number of samples; ``u[k]`` is the input at ``t_k``.
+
+Ports: input ``u`` (m, absent if m = 0); outputs ``y`` (q) and the true state ``x`` (n), so that an
+observer's error ``x - x_hat`` can be formed.  Direct feedthrough exactly when ``h`` reads ``u``.
+"""
+
+from __future__ import annotations
+
+from typing import Mapping
+
+import numpy as np
+
+from observers.block import Block, Segment
+from observers.checks import ParameterError, as_vector, require_positive
+from observers.expressions import VectorFunction
+from observers.integrators import DEFAULT_SUBSTEP_BUDGET, require_budget, rk4_step, sample_count, substep_count
+
+__all__ = ["ExpressionPlant"]
+
+
+class ExpressionPlant(Block):
+    """Plant ``x' = f(t, x, u, p)`` (or ``x[k+1] = f`` with ``sample_time``), ``y = h(t, x, u, p)``.
+
+    Parameters
+    ----------
+    f, h : VectorFunction
+        The compiled right-hand side (n components) and output map (q components).
+    p : array_like
+        The parameter vector the expressions read (named parameters are entries of it).
+    x0 : array_like
+        Initial state (n).
+    inputs : int
+        Size m of the input ``u``.
+    sample_time : float, optional
+        ``T`` of a discrete plant; None: continuous.
+    max_substep : float
+        Longest RK4 sub-step of a continuous plant.
+    substep_budget : int
+        Most sub-steps (or samples) one communication step may take (refused beyond).
+    """
+
+    not_state = ("f", "h", "p", "sample_time", "max_substep", "substep_budget", "_no_input")
+
+    def __init__(self, f: VectorFunction, h: VectorFunction, p, x0, inputs: int, *, sample_time: float | None = None,
+                 max_substep: float = 1e-3, substep_budget: int = DEFAULT_SUBSTEP_BUDGET):
+        self.x = as_vector("x0", x0, f.size)
+        self.f, self.h = f, h
+        self.p = as_vector("p", p) if np.size(p) else np.zeros(0)
+        if inputs < 0 or int(inputs) != inputs:
+            raise ParameterError(f"inputs: expected the size of u (an integer >= 0), got {inputs!r}")
+        self.sample_time = None if sample_time is None else require_positive("sample_time", sample_time)
+        self.max_substep = require_positive("max_substep", max_substep)
+        self.substep_budget = require_budget(substep_budget)
+        self.feedthrough = "u" in h.uses
+        self.input_sizes = {"u": int(inputs)} if inputs else {}
+        self.output_sizes = {"y": h.size, "x": f.size}
+        self._no_input = np.zeros(0)
+
+    def outputs(self, t: float, inputs: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+        u = inputs["u"] if self.input_sizes else self._no_input
+        return {"y": self.h(t, self.x, u, self.p), "x": self.x.copy()}
+
+    def advance(self, t: float, h: float, inputs: Mapping[str, Segment]) -> None:
+        u = inputs["u"] if self.input_sizes else Segment.hold(self._no_input)
+        self.x = self._samples(t, h, u) if self.sample_time is not None else self._integrate(t, h, u)
+
+    def _integrate(self, t: float, h: float, u: Segment) -> np.ndarray:
+        count = substep_count(h, self.max_substep, budget=self.substep_budget)
+        f, p, start, slope = self.f, self.p, u.start, u.slope
+        return rk4_step(lambda s, x: f(s, x, start + (s - t) * slope, p), t, self.x, h, count)
+
+    def _samples(self, t: float, h: float, u: Segment) -> np.ndarray:
+        T = self.sample_time
+        x = self.x
+        for k in range(sample_count(h, T, self.substep_budget)):
+            s = k * T
+            x = self.f(t + s, x, u.start + s * u.slope, self.p)
+        return x

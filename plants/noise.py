@@ -1,0 +1,201 @@
+"""Seeded noise, sample-and-hold, optionally band-limited, as a source or added to a connection.
+
+:class:`Noise` is a function of time.  Its white sequence holds ``w_k`` on the sample interval
+``[k dt, (k + 1) dt)`` (negative times in interval 0):
+
+* ``distribution="gaussian"``: ``w_k = std * N(0, 1)``;
+* ``distribution="uniform"``: ``w_k = std * U(-sqrt 3, sqrt 3)`` (the same standard deviation),
+
+drawn from ``numpy.random.default_rng((seed, k))``, so ``w_k`` depends only on ``(seed, k)``, not on
+the communication step or on how often or in which order it is evaluated (``size`` streams draw
+``size`` values from the same generator: independent streams).  The Gaussian white sequence is
+the one of :class:`plants.signals.SampledNoise` with the same ``std``, ``dt`` and ``seed``.
+
+Band-limited (``cutoff_hz`` given): the held white noise drives a low-pass of cut-off
+``wc = 2 pi cutoff_hz``, first order ``wc / (s + wc)`` or second-order Butterworth
+``wc^2 / (s^2 + sqrt 2 wc s + wc^2)``.  Its input being constant over each interval, the filter is
+discretised exactly (zero-order hold): ``x_{k+1} = Ad x_k + Bd w_k``, ``Ad = exp(A dt)``,
+``Bd = int_0^dt exp(A s) B ds``, and the output on interval ``k`` is ``z_k = x_k[0]``, the filter
+output at ``k dt``, held.  ``x_0`` has the stationary covariance ``P = Ad P Ad' + std^2 Bd Bd'``
+(Gaussian, drawn from the generator of interval 0 after its white sample), so the variance of
+``z_k`` is ``P[0, 0]`` from the start (first order: ``std^2 (1 - a) / (1 + a)``, ``a = exp(-wc dt)``).
+
+Choice (stateless with a cache): ``z_k`` depends on ``w_0 .. w_{k-1}``, so it is computed by the
+recurrence from ``x_0``.  The block keeps the last state reached and a checkpoint every
+:data:`CHECKPOINT` intervals; evaluating earlier restarts from the checkpoint before it and runs the
+same recurrence, so every ``z_k`` is bit-for-bit the same whatever the order of evaluation.  The
+cache is not block state (``not_state``).  Cost: ``O(k)`` the first time interval ``k`` is reached,
+``O(1)`` per step when the time goes forward, at most :data:`CHECKPOINT` intervals after a rollback.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Mapping
+
+import numpy as np
+
+from observers.block import Block, Segment
+from observers.checks import ParameterError, require_positive
+from observers.integrators import BudgetError, expm
+
+from .sources.base import integer_parameter, interval_index
+
+__all__ = ["CHECKPOINT", "Noise", "NoiseSource", "AddedNoise"]
+
+#: intervals between two saved filter states
+CHECKPOINT = 256
+
+
+def _discrete_low_pass(cutoff_hz: float, order: int, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """``Ad``, ``Bd`` of the low-pass of the module docstring, by one exponential of ``[[A, B], [0, 0]] dt``."""
+    wc = 2 * math.pi * cutoff_hz
+    if order == 1:
+        A, B = np.array([[-wc]]), np.array([[wc]])
+    else:
+        A, B = np.array([[0.0, 1.0], [-wc ** 2, -math.sqrt(2) * wc]]), np.array([[0.0], [wc ** 2]])
+    augmented = np.zeros((order + 1, order + 1))
+    augmented[:order, :order], augmented[:order, order:] = A * dt, B * dt
+    exponential = expm(augmented)
+    return exponential[:order, :order], exponential[:order, order:]
+
+
+def stationary_covariance(Ad: np.ndarray, Bd: np.ndarray, variance: float) -> np.ndarray:
+    """``P = Ad P Ad' + variance Bd Bd'`` solved as one linear system in ``vec P``."""
+    n = Ad.shape[0]
+    Q = variance * (Bd @ Bd.T)
+    P = np.linalg.solve(np.eye(n * n) - np.kron(Ad, Ad), Q.reshape(-1)).reshape(n, n)
+    return (P + P.T) / 2
+
+
+class Noise:
+    """Seeded sample-and-hold noise of ``size`` streams (see module docstring): ``noise(t)`` -> array.
+
+    Parameters
+    ----------
+    std : float
+        Standard deviation of the white samples ``w_k`` (>= 0; 0 gives zeros).
+    sample_interval : float
+        ``dt`` (s), > 0: one sample per interval ``[k dt, (k + 1) dt)``, held.
+    seed : int
+        >= 0; ``w_k`` is drawn from ``default_rng((seed, k))``.
+    size : int
+        Number of independent streams (the length of ``noise(t)``).
+    distribution : {"gaussian", "uniform"}
+        Of the white samples, both of standard deviation ``std``.
+    cutoff_hz : float, optional
+        Cut-off (Hz, > 0) of the low-pass; white noise without it.
+    filter_order : {1, 2}
+        First order or second-order Butterworth.
+    interval_budget : int
+        Most filter steps one evaluation may take (band-limited): an evaluation needing more raises
+        :class:`~observers.integrators.BudgetError` before any work, so no call takes unbounded time.
+    """
+
+    def __init__(self, std: float, sample_interval: float, seed: int, size: int = 1, distribution: str = "gaussian",
+                 cutoff_hz: float | None = None, filter_order: int = 1, interval_budget: int = 10 ** 6):
+        self.std = require_positive("std", std, allow_zero=True)
+        self.dt = require_positive("sample_interval", sample_interval)
+        if distribution not in ("gaussian", "uniform"):
+            raise ParameterError(f"distribution: expected 'gaussian' or 'uniform', got {distribution!r}")
+        self.seed, self.size = integer_parameter("seed", seed, 0), integer_parameter("size", size, 1)
+        self.distribution = distribution
+        self.interval_budget = integer_parameter("interval_budget", interval_budget, 1)
+        self.filter = None
+        if cutoff_hz is not None:
+            cutoff = require_positive("cutoff_hz", cutoff_hz)
+            if filter_order not in (1, 2):
+                raise ParameterError(f"filter_order: expected 1 or 2, got {filter_order!r}")
+            self.filter = _discrete_low_pass(cutoff, int(filter_order), self.dt)
+        self._last: tuple[int, np.ndarray] | None = None
+        self._white: tuple[int, np.ndarray] | None = None
+        self._checkpoints: dict[int, np.ndarray] = {}
+
+    def _draw(self, rng: np.random.Generator) -> np.ndarray:
+        if self.distribution == "gaussian":
+            return self.std * rng.standard_normal(self.size)
+        return self.std * rng.uniform(-math.sqrt(3.0), math.sqrt(3.0), self.size)
+
+    def white(self, k: int) -> np.ndarray:
+        """``w_k``, the held white sample of interval ``k`` (the last one is kept: steps within an interval)."""
+        k = int(k)
+        if self._white is None or self._white[0] != k:
+            self._white = (k, self._draw(np.random.default_rng((self.seed, k))))
+        return self._white[1].copy()
+
+    def variance(self) -> float:
+        """Variance of the output on any interval: ``std^2`` (white) or ``P[0, 0]`` (band-limited)."""
+        if self.filter is None:
+            return self.std ** 2
+        return float(stationary_covariance(*self.filter, self.std ** 2)[0, 0])
+
+    def _initial_state(self) -> np.ndarray:
+        Ad, Bd = self.filter
+        rng = np.random.default_rng((self.seed, 0))
+        self._draw(rng)                                  # w_0 comes first from this generator
+        factor = self.std * np.linalg.cholesky(stationary_covariance(Ad, Bd, 1.0))
+        return factor @ rng.standard_normal((Ad.shape[0], self.size))
+
+    def filtered_state(self, k: int) -> np.ndarray:
+        """``x_k`` (filter order x size), by the recurrence from the nearest known earlier state."""
+        if self._last is None:
+            self._last = (0, self._initial_state())
+            self._checkpoints[0] = self._last[1]
+        reached, x = self._last
+        if k < reached:
+            reached = (k // CHECKPOINT) * CHECKPOINT
+            x = self._checkpoints[reached]
+        if k - reached > self.interval_budget:
+            raise BudgetError(f"interval_budget: interval {k} needs {k - reached} filter steps from interval "
+                              f"{reached}, more than the budget of {self.interval_budget}")
+        Ad, Bd = self.filter
+        while reached < k:
+            x = Ad @ x + Bd * self.white(reached)
+            reached += 1
+            if reached % CHECKPOINT == 0:
+                self._checkpoints.setdefault(reached, x)
+        self._last = (k, x)
+        return x.copy()
+
+    def sample(self, k: int) -> np.ndarray:
+        """The output on interval ``k``: ``w_k`` or ``z_k``."""
+        if self.std == 0.0:
+            return np.zeros(self.size)
+        return self.white(k) if self.filter is None else self.filtered_state(k)[0].copy()
+
+    def __call__(self, t: float) -> np.ndarray:
+        return self.sample(int(interval_index(t, self.dt)))
+
+
+class NoiseSource(Block):
+    """No inputs; output ``y = noise(t)`` (``size`` streams), held: ``derivative(t) = 0``."""
+
+    stateless = True
+    not_state = ("noise",)
+
+    def __init__(self, noise: Noise):
+        self.noise = noise
+        self.input_sizes = {}
+        self.output_sizes = {"y": noise.size}
+
+    def derivative(self, t: float) -> np.ndarray:
+        return np.zeros(self.noise.size)
+
+    def outputs(self, t: float, inputs: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+        return {"y": self.noise(t)}
+
+    def advance(self, t: float, h: float, inputs: Mapping[str, Segment]) -> None:
+        """Nothing to integrate: the output is a function of time."""
+
+
+class AddedNoise(NoiseSource):
+    """Noise on a connection: input ``u`` (size ``noise.size``), output ``y = u + noise(t)``."""
+
+    feedthrough = True
+
+    def __init__(self, noise: Noise):
+        super().__init__(noise)
+        self.input_sizes = {"u": noise.size}
+
+    def outputs(self, t: float, inputs: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+        return {"y": np.asarray(inputs["u"], dtype=float) + self.noise(t)}

@@ -1,0 +1,136 @@
+"""Tables of break points and CSV columns, linear or previous-value interpolation."""
+
+from __future__ import annotations
+
+import csv
+import math
+from pathlib import Path
+
+import numpy as np
+
+from observers.checks import ParameterError, as_vector
+
+from .base import Source
+
+__all__ = ["Table", "CsvColumn"]
+
+
+class Table(Source):
+    """Piecewise-linear (``interpolation="linear"``) or previous-value (``"previous"``) table of
+    ``(times_i, values_i)``, ``times`` strictly increasing; held at ``values_0`` before ``times_0``
+    and at the last value after the last time.
+
+    Linear: ``y = values_i + s_i (t - times_i)``, ``s_i = (values_{i+1} - values_i) / (times_{i+1} - times_i)``
+    on ``[times_i, times_{i+1})``; ``derivative`` is ``s_i`` there and 0 outside the table.
+    Previous: ``y = values_i`` on ``[times_i, times_{i+1})``, ``derivative`` 0.
+
+    Parameters
+    ----------
+    times : array_like
+        Break points (s), strictly increasing, at least one.
+    values : array_like
+        The values there, as many.
+    interpolation : {"linear", "previous"}
+        Between the break points.
+    names : tuple of str
+        Names of ``times`` and ``values`` in error messages (for :class:`CsvColumn`).
+    """
+
+    not_state = ("times", "values", "interpolation", "_slopes")
+
+    def __init__(self, times, values, interpolation: str = "linear", names=("times", "values")):
+        super().__init__()
+        self.times = as_vector(names[0], times)
+        if self.times.size == 0:
+            raise ParameterError(f"{names[0]}: expected at least one entry")
+        self.values = as_vector(names[1], values, self.times.size)
+        steps = np.diff(self.times)
+        if np.any(steps <= 0):
+            i = int(np.argmax(steps <= 0)) + 1
+            raise ParameterError(f"{names[0]}: must be strictly increasing, entry {i + 1} ({self.times[i]:g}) "
+                                 f"is not after entry {i} ({self.times[i - 1]:g})")
+        if interpolation not in ("linear", "previous"):
+            raise ParameterError(f"interpolation: expected 'linear' or 'previous', got {interpolation!r}")
+        self.interpolation = interpolation
+        self._slopes = np.append(np.diff(self.values) / steps, 0.0)
+
+    def _segment(self, t):
+        return np.searchsorted(self.times, np.asarray(t, dtype=float), side="right") - 1
+
+    def value(self, t):
+        if self.interpolation == "linear":
+            return np.interp(np.asarray(t, dtype=float), self.times, self.values)
+        return self.values[np.maximum(self._segment(t), 0)]
+
+    def derivative(self, t):
+        i = self._segment(t)
+        slopes = self._slopes if self.interpolation == "linear" else np.zeros_like(self._slopes)
+        return np.where(i >= 0, slopes[np.maximum(i, 0)], 0.0)
+
+
+class CsvColumn(Table):
+    """A column of a CSV file with a header row, against its ``time_column``, as a :class:`Table`.
+
+    The file is read once, here; a missing file or column, a row without the column, a value that is
+    not a finite number or times that do not increase raise :class:`ParameterError` naming the file,
+    the column and the row (the file's line number, the header being line 1).  Blank lines are skipped.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The CSV file (UTF-8, comma-separated, a header row of column names).
+    column : str
+        The column of values.
+    time_column : str
+        The column of times, strictly increasing.
+    interpolation : {"linear", "previous"}
+        As :class:`Table`.
+    """
+
+    not_state = ("path", "column")
+
+    def __init__(self, path, column: str, time_column: str = "time", interpolation: str = "linear"):
+        self.path, self.column = str(path), column
+        times, values = self._read(time_column)
+        super().__init__(times, values, interpolation, names=(f"{self.path}: column {time_column!r}",
+                                                              f"{self.path}: column {column!r}"))
+
+    def _read(self, time_column: str) -> tuple[list[float], list[float]]:
+        try:
+            with Path(self.path).open(newline="", encoding="utf-8-sig") as file:
+                rows = list(csv.reader(file))
+        except (OSError, UnicodeDecodeError, csv.Error) as exc:
+            raise ParameterError(f"path: cannot read {self.path!r}: {exc}") from exc
+        if not rows:
+            raise ParameterError(f"path: {self.path} is empty (expected a header row)")
+        header = [name.strip() for name in rows[0]]
+        for name, what in ((time_column, "time_column"), (self.column, "column")):
+            if name not in header:
+                raise ParameterError(f"{what}: {name!r} is not a column of {self.path} (columns: {', '.join(header)})")
+        picked = [(header.index(time_column), time_column), (header.index(self.column), self.column)]
+        times, values, previous = [], [], None
+        for line, row in enumerate(rows[1:], start=2):
+            if not any(cell.strip() for cell in row):
+                continue
+            time, value = (self._cell(row, index, name, line) for index, name in picked)
+            if previous is not None and time <= previous[1]:
+                raise ParameterError(f"{self.path}: row {line}: time {time:g} is not after "
+                                     f"{previous[1]:g} of row {previous[0]}")
+            previous = (line, time)
+            times.append(time)
+            values.append(value)
+        if not times:
+            raise ParameterError(f"path: {self.path} has a header but no data rows")
+        return times, values
+
+    def _cell(self, row: list[str], index: int, name: str, line: int) -> float:
+        where = f"{self.path}: row {line}, column {name!r}"
+        if index >= len(row):
+            raise ParameterError(f"{where}: missing (the row has {len(row)} cells)")
+        try:
+            number = float(row[index])
+        except ValueError:
+            raise ParameterError(f"{where}: expected a number, got {row[index]!r}") from None
+        if not math.isfinite(number):
+            raise ParameterError(f"{where}: {row[index]!r} is not finite")
+        return number

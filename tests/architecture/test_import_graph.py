@@ -1,0 +1,60 @@
+"""The architecture, checked from the import graph of the source (tests/architecture/import_graph.py)."""
+
+from __future__ import annotations
+
+import pytest
+
+from .import_graph import Import, cycles, imports, is_ancestor_or_self, module_files
+
+#: the FMU runtime (what every FMU carries) must not reach the host side
+RUNTIME = "fmus.runtime"
+
+
+@pytest.fixture(scope="module")
+def edges() -> list[Import]:
+    return imports()
+
+
+def test_the_graph_is_read():
+    """The reader finds the project's modules and the imports everybody knows are there."""
+    edges = imports()
+    assert len(module_files()) > 50
+    assert any(e.importer == "fmus.cli" and e.target.startswith("fmus.scenarios") for e in edges)
+    assert cycles([Import("a", "b", 1), Import("b", "c", 1), Import("c", "a", 1), Import("c", "d", 1)]) \
+        == [["a", "b", "c"]]
+
+
+def test_no_import_cycle(edges):
+    found = cycles(edges)
+    described = []
+    for component in found:
+        members = set(component)
+        links = sorted({f"{e.importer} -> {e.target} (line {e.line})" for e in edges
+                        if e.importer in members and e.target in members and e.importer != e.target})
+        described.append(", ".join(links))
+    assert not found, "import cycles: " + " | ".join(described)
+
+
+def _private(name: str) -> bool:
+    return name.startswith("_") and not (name.startswith("__") and name.endswith("__"))
+
+
+def test_no_import_of_another_modules_private_names(edges):
+    offenders = []
+    for edge in edges:
+        if edge.target == edge.importer:
+            continue
+        offenders += [f"{edge.importer}:{edge.line} takes {edge.target}.{name}" for name in edge.names if _private(name)]
+        *package, last = edge.target.split(".")
+        if _private(last) and not is_ancestor_or_self(".".join(package), edge.importer):
+            offenders.append(f"{edge.importer}:{edge.line} imports the private module {edge.target}")
+    assert not offenders, "private names imported across modules: " + "; ".join(offenders)
+
+
+def test_the_fmu_runtime_imports_nothing_of_the_host_side(edges):
+    modules = module_files()
+    assert RUNTIME in modules, "fmus/runtime/ is the FMU runtime package"
+    offenders = [f"{e.importer}:{e.line} imports {e.target}" for e in edges
+                 if is_ancestor_or_self(RUNTIME, e.importer) and e.target.startswith("fmus")
+                 and not is_ancestor_or_self(RUNTIME, e.target) and e.target != "fmus"]
+    assert not offenders, "the FMU runtime reaches the host side: " + "; ".join(offenders)
