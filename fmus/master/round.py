@@ -132,7 +132,8 @@ class Stepper:
     # -- rollback (adaptive master)
     def save(self):
         states = [call(inst, self.logger, "getFMUstate", inst.get_state) for inst in self.order]
-        return states, self.live.copy(), self.now.copy(), None if self.before is None else self.before.copy(), self.h_before
+        before = None if self.before is None else self.before.copy()
+        return states, self.live.copy(), self.now.copy(), before, self.h_before
 
     def restore(self, saved) -> None:
         states, live, now, before, h_before = saved
