@@ -66,15 +66,18 @@ def _pretty(root: Element) -> bytes:
 class _Exported:
     """The scenario's system resolved to element-wise connections and typed start values.
 
-    Names are FMI 2.0 element names (``x0[1]``) for both FMI versions (:mod:`fmus.fmi3.elements`).
+    Names are FMI 2.0 element names (``x0[1]``) for both FMI versions (:mod:`fmus.fmi3.elements`);
+    the FMI version is the FMUs' own (their modelDescription).
     """
 
-    def __init__(self, scenario: Scenario, build_dir: Path, overrides, coupling: str, fmi_version: int = 2):
-        fmus = ensure_fmus(scenario, build_dir, fmi_version=fmi_version)
-        self.fmi_version = fmi_version
+    def __init__(self, scenario: Scenario, fmus: dict[str, Path], overrides, coupling: str):
         self.system = system(scenario, fmus, overrides)
         descriptions = {c.name: read_model_description(str(c.fmu)) for c in self.system.components}
-        self.variables = {name: elements(md) if fmi_version == 3 else {v.name: v for v in md.modelVariables}
+        versions = {int(md.fmiVersion.split(".")[0]) for md in descriptions.values()}
+        if len(versions) != 1:
+            raise SimulationError(f"{scenario.name}: its FMUs must share one FMI version, got {sorted(versions)}")
+        self.fmi_version = versions.pop()
+        self.variables = {name: elements(md) if self.fmi_version == 3 else {v.name: v for v in md.modelVariables}
                           for name, md in descriptions.items()}
         self.connections = [pair for connection in self.system.connections for pair in self._elements(connection)]
         self.start = {c.name: dict(c.start) for c in self.system.components}
@@ -278,7 +281,8 @@ def export(scenario: Scenario, fmt: str, out_dir: Path | str, build_dir: Path | 
         raise SimulationError(f"coupling: {coupling!r} is not one of {COUPLINGS}")
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    exported = _Exported(scenario, Path(build_dir), overrides, coupling or scenario.coupling, fmi_version)
+    fmus = ensure_fmus(scenario, Path(build_dir), fmi_version=fmi_version)
+    exported = _Exported(scenario, fmus, overrides, coupling or scenario.coupling)
     if fmt == "osp":
         return _osp(exported, scenario, out_dir, step)
     path = out_dir / f"{scenario.name}.ssp"

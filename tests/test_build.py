@@ -60,7 +60,7 @@ def test_build_builds_and_validates_each_distinct_fmu_once(monkeypatch, tmp_path
         return path
 
     monkeypatch.setattr(scenarios, "build_fmu", fake_build)
-    monkeypatch.setattr(scenarios, "_damage", lambda path, fmi_version=2: None)   # the fakes are empty files
+    monkeypatch.setattr(scenarios, "_damage", lambda path: None)   # the fakes are empty files
     monkeypatch.setattr(cli, "_validate", lambda path: validated.append(Path(path).stem) or [])
     assert cli.main(["build", "--out", str(tmp_path)]) == 0
     distinct = {item.model_name if not isinstance(item, tuple) else item[0].model_name

@@ -104,15 +104,16 @@ def _items(scenario: Scenario):
         yield definition, tuple(extra_modules)
 
 
-def _damage(path: Path, fmi_version: int = 2) -> str | None:
-    """Why a cached FMU cannot be used as it is (None: it can)."""
+def _damage(path: Path) -> str | None:
+    """Why a cached FMU cannot be used as it is (None: it can); its binary is looked for where its FMI version
+    (its modelDescription) has it."""
     try:
         description = read_model_description(str(path))
     except Exception as exc:  # lxml, zip and schema errors alike: the file is damaged
         return f"its modelDescription.xml cannot be read ({type(exc).__name__}: {exc})"
     if description.coSimulation is None:
         return "it has no co-simulation interface"
-    folder = fmpy.platform if fmi_version == 2 else fmpy.platform_tuple
+    folder = fmpy.platform if description.fmiVersion.startswith("2") else fmpy.platform_tuple
     binary = f"binaries/{folder}/{description.coSimulation.modelIdentifier}{fmpy.sharedLibraryExtension}"
     with zipfile.ZipFile(path) as archive:
         if binary not in archive.namelist():
@@ -127,10 +128,10 @@ def _ensure(items, build_dir: Path, force: bool, fmi_version: int) -> dict[str, 
         path = folder / f"{definition.model_name}.fmu"
         if force or not is_current(path, definition, extra_modules, fmi_version):
             build_fmu(definition, folder, extra_modules, fmi_version)
-        elif (problem := _damage(path, fmi_version)) is not None:
+        elif (problem := _damage(path)) is not None:
             print(f"obsfmu: note: {path}: {problem}; rebuilding it", file=sys.stderr)
             build_fmu(definition, folder, extra_modules, fmi_version)
-        problem = _damage(path, fmi_version)
+        problem = _damage(path)
         if problem is not None:
             raise SimulationError(f"{path}: {problem} even after rebuilding it")
         paths[definition.model_name] = path
