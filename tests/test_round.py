@@ -95,3 +95,16 @@ def test_bad_links_are_refused_before_any_step(ship_fmus):
         assert np.array_equal(stepper.live, live)
         assert native.function(native._address, 0.0, -1.0, ctypes.addressof(failed)) == ERROR   # h <= 0
         assert native.function(None, 0.0, 1e-3, ctypes.addressof(failed)) == ERROR
+
+
+@pytest.mark.parametrize("fmi_version, order, native", [(2, "gauss-seidel", True), (2, "jacobi", False),
+                                                         (3, "gauss-seidel", False)])
+def test_the_round_is_chosen_once_per_run(build_dir, fmi_version, order, native):
+    """The round in one call serves Gauss-Seidel runs of obsfmu FMI 2.0 FMUs; Jacobi runs and FMI 3.0 FMUs
+    (no one-call step) take the Python round, chosen when the stepper is made."""
+    scenario = get("ship")
+    fmus = ensure_fmus(scenario, build_dir, fmi_version=fmi_version)
+    with Session(system(scenario, fmus), echo_log=False) as session:
+        stepper = Stepper(session.instances, session.logger, jacobi=order == "jacobi", linear=True)
+        assert (stepper.native is not None) == native
+        assert all(inst.batched for inst in session.instances.values()) == (fmi_version == 2)
