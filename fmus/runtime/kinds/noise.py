@@ -54,6 +54,7 @@ def _definition(model_name: str, kind: str, size: int, std, sample_interval, see
     what = f"{'y = u + ' if inputs else 'y = '}{band} {distribution} noise, seeded, sample-and-hold"
     return FmuDefinition(model_name=model_name, kind=kind, parameters=parameters, inputs=inputs, options=options,
                          feedthrough=bool(inputs), description=description or what,
+                         output_derivatives=not inputs,           # held noise: derivative 0 (of u + noise: unknown)
                          outputs=[Port("y", size, what, unit, scalar=size == 1)])
 
 

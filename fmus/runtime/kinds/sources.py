@@ -7,9 +7,11 @@ the source's argument (``--set``/``--vary`` work on it); the strings (chirp ``sw
 ``interpolation``) are definition options.  Each definition function builds the source once, so a bad
 setting is refused at build time, naming it.  No inputs; one output ``y`` with the signal's unit.
 
-The sources know their exact derivative (:meth:`plants.sources.Source.derivative`), but the FMU does
-not export it yet (``maxOutputDerivativeOrder = 0``): a master couples a source linearly by its
-outputs at ``t`` and ``t + h`` (Gauss-Seidel interpolation, exact for the piecewise-linear ones).
+The sources know their exact derivative (:meth:`plants.sources.Source.derivative`, one-sided from the
+right at a jump): the FMUs export it (``maxOutputDerivativeOrder = 1``, ``fmi2GetRealOutputDerivatives``),
+so a master can hand it to a consumer as its input derivative (``fmi2SetRealInputDerivatives``) and
+linear coupling of a smooth source is exact.  (The project's master does not read output
+derivatives; it interpolates between a producer's outputs at ``t`` and ``t + h`` -- Gauss-Seidel.)
 """
 
 from __future__ import annotations
@@ -54,7 +56,7 @@ def _source(model_name: str, family: str, description: str, unit, parameters: li
     options = options or {}
     SOURCE_KINDS[family](**_arguments({p.name: p.array(p.value) for p in parameters}, options))
     return FmuDefinition(model_name=model_name, kind=f"{family}-source", description=description,
-                         parameters=parameters, inputs=[], options=options,
+                         parameters=parameters, inputs=[], options=options, output_derivatives=True,
                          outputs=[Port("y", 1, f"{family} signal", unit, scalar=True)])
 
 
