@@ -95,15 +95,18 @@ def expression_plant_definition(model_name: str, f: Sequence[str], h: Sequence[s
     if isinstance(options["f"], list) and len(options["f"]) != x0.size:
         raise ParameterError(f"{field_prefix}f: expected {x0.size} expressions (one per entry of x0), "
                              f"got {len(options['f'])}")
-    f_compiled, h_compiled = _compiled(options, field_prefix)
     fmu_parameters = _named_parameters(parameters, units, field_prefix)
+    f_compiled, h_compiled = _compiled(options, field_prefix)
     fmu_parameters.append(Parameter.of("x0", x0, "initial state x(0)", state_units))
     if sample_time is None:
         fmu_parameters.append(Parameter.scalar("max_substep", max_substep, "longest RK4 sub-step", "s"))
     else:
         fmu_parameters.append(Parameter.scalar("sample_time", sample_time, "sample time T: x[k+1] = f", "s"))
     fmu_parameters.append(Parameter.substep_budget(substep_budget))
-    _expression_plant({p.name: p.array(p.value) for p in fmu_parameters}, options)   # refused now, named
+    try:                                                    # refused now, named
+        _expression_plant({p.name: p.array(p.value) for p in fmu_parameters}, options)
+    except ParameterError as exc:
+        raise ParameterError(f"{field_prefix}{exc}") from None
     m, q = int(inputs), h_compiled.size
     law = "x[k+1] = f(t, x, u, p)" if sample_time is not None else "dx/dt = f(t, x, u, p)"
     return FmuDefinition(
