@@ -91,6 +91,8 @@ def test_parameters_and_units_in_the_model_description(fmus):
     ({"parameters": {"x0": 1.0}}, r"^components\.p\.parameters: 'x0' cannot name"),
     ({"parameters": {"c": "fast"}}, r"^components\.p\.parameters\.c: expected a finite number"),
     ({"max_substep": 0.0}, r"^components\.p\.max_substep"),
+    ({"parameters": {"y": 1.0}}, r"^components\.p\.parameters: 'y' cannot name"),
+    ({"state_units": ["m", "m/s", "s"]}, r"^components\.p\.state_units: expected 2 units"),
 ])
 def test_a_bad_expression_or_setting_is_refused_at_build_time_naming_the_field(settings, message):
     arguments = {"f": ["x[2]", "-c * x[2]"], "h": ["x[1]"], "x0": [0.0, 1.0], "parameters": {"c": 1.0},

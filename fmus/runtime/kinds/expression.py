@@ -29,7 +29,7 @@ from . import register
 __all__ = ["expression_plant_definition"]
 
 #: parameter names of the FMU itself, never a named parameter of the expressions
-_RESERVED = {"x0", "max_substep", "sample_time", "substep_budget", "u_interpolation", "t", *VECTORS, *CONSTANTS,
+_RESERVED = {"x0", "y", "max_substep", "sample_time", "substep_budget", "u_interpolation", "t", *VECTORS, *CONSTANTS,
              *FUNCTIONS}
 
 
@@ -74,6 +74,13 @@ def _named_parameters(parameters: Mapping, units: Mapping, prefix: str) -> list[
     return result
 
 
+def _units(field: str, units, size: int):
+    """The units of a port or of x0 (:func:`~fmus.runtime.kinds.linear.vector_unit`), one per entry if a list."""
+    if isinstance(units, (list, tuple)) and len(units) != size:
+        raise ParameterError(f"{field}: expected {size} units (one per entry), got {len(units)}")
+    return vector_unit(units)
+
+
 def expression_plant_definition(model_name: str, f: Sequence[str], h: Sequence[str], x0, *, inputs: int = 0,
                                 parameters: Mapping[str, float] | None = None,
                                 parameter_units: Mapping[str, str] | None = None, sample_time: float | None = None,
@@ -97,7 +104,11 @@ def expression_plant_definition(model_name: str, f: Sequence[str], h: Sequence[s
                              f"got {len(options['f'])}")
     fmu_parameters = _named_parameters(parameters, units, field_prefix)
     f_compiled, h_compiled = _compiled(options, field_prefix)
-    fmu_parameters.append(Parameter.of("x0", x0, "initial state x(0)", state_units))
+    m, q, n = int(inputs), h_compiled.size, f_compiled.size
+    state_unit = _units(field_prefix + "state_units", state_units, n)
+    output_unit, input_unit = _units(field_prefix + "output_units", output_units, q), \
+        _units(field_prefix + "input_units", input_units, m)
+    fmu_parameters.append(Parameter.of("x0", x0, "initial state x(0)", state_unit))
     if sample_time is None:
         fmu_parameters.append(Parameter.scalar("max_substep", max_substep, "longest RK4 sub-step", "s"))
     else:
@@ -107,7 +118,6 @@ def expression_plant_definition(model_name: str, f: Sequence[str], h: Sequence[s
         _expression_plant({p.name: p.array(p.value) for p in fmu_parameters}, options)
     except ParameterError as exc:
         raise ParameterError(f"{field_prefix}{exc}") from None
-    m, q = int(inputs), h_compiled.size
     law = "x[k+1] = f(t, x, u, p)" if sample_time is not None else "dx/dt = f(t, x, u, p)"
     return FmuDefinition(
         model_name=model_name,
@@ -115,8 +125,8 @@ def expression_plant_definition(model_name: str, f: Sequence[str], h: Sequence[s
         feedthrough="u" in h_compiled.uses,
         description=description or f"plant of expressions: {law}, y = h(t, x, u, p)",
         parameters=fmu_parameters,
-        inputs=[Port("u", m, "plant input u", vector_unit(input_units), scalar=m == 1)] if m else [],
-        outputs=[Port("y", q, "output y = h(t, x, u, p)", vector_unit(output_units), scalar=q == 1),
-                 Port("x", f_compiled.size, "true state x", vector_unit(state_units))],
+        inputs=[Port("u", m, "plant input u", input_unit, scalar=m == 1)] if m else [],
+        outputs=[Port("y", q, "output y = h(t, x, u, p)", output_unit, scalar=q == 1),
+                 Port("x", n, "true state x", state_unit)],
         options=options,
     )
