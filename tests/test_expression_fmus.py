@@ -14,7 +14,8 @@ from fmus.master import Component, Connection, System, cosimulate
 from fmus.runtime.kinds.expression import expression_plant_definition
 from fmus.runtime.kinds.linear import plant_definition
 from fmus.runtime.kinds.sources import sine_source_definition
-from kinds_support import build_all, simulate
+from faults_support import DISCARD, OK, Probe
+from kinds_support import build_all, simulate, started
 from observers.checks import ParameterError
 from observers.expressions import ExpressionError
 from observers.lti_model import StateSpace
@@ -102,11 +103,24 @@ def test_a_bad_expression_or_setting_is_refused_at_build_time_naming_the_field(s
 
 
 def test_a_nan_at_run_time_is_a_discarded_step_naming_the_output(fmus):
-    messages = []
-    with pytest.raises(Exception, match="fmi2DoStep"):                   # fmpy stops at the refused step
-        simulate(fmus["falling"], 1.0, 0.1, messages)
-    refusal, = [m for m in messages if "refused" in m]
-    assert "do_step(t=0.4, h=0.1) refused, state unchanged" in refusal and "output y = nan is not finite" in refusal
+    probe = Probe(fmus["falling"], "falling")
+    try:
+        assert [probe.step(0.1) for _ in range(5)] == [OK, OK, OK, OK, DISCARD]   # x(0.5) = -0.05: log gives NaN
+        assert probe.get(["x[1]"]) == [pytest.approx(0.05)]                      # the state as before the step
+    finally:
+        probe.free()
+    assert "do_step(t=0.4, h=0.1) refused, state unchanged: after the step output y = nan is not finite" \
+        in probe.messages()
+
+
+def _refused_step(path, h: float) -> str:
+    """The log of an instance of ``path`` whose first step, of length ``h``, is discarded."""
+    probe = Probe(path, "discrete")
+    try:
+        assert probe.step(h) == DISCARD
+    finally:
+        probe.free()
+    return probe.messages()
 
 
 def test_a_discrete_expression_plant_steps_whole_samples_as_a_hand_loop(fmus):
@@ -118,11 +132,8 @@ def test_a_discrete_expression_plant_steps_whole_samples_as_a_hand_loop(fmus):
         x = 3.7 * x * (1 - x) + 0.01 * 0.5
     np.testing.assert_allclose(result["x[1]"], expected, rtol=1e-14, atol=1e-15)
     np.testing.assert_allclose(result["y[2]"], 3.7 * np.array(expected), rtol=1e-14)
-    messages = []
-    with pytest.raises(Exception, match="fmi2DoStep"):
-        simulate(fmus["logistic"], 1.0, 0.15, messages)
-    assert any("sample_time: a step of a discrete block covers whole samples of T = 0.1; h = 0.15 is 1.5 samples" in m
-               for m in messages), messages
+    assert "sample_time: a step of a discrete block covers whole samples of T = 0.1; h = 0.15 is 1.5 samples" \
+        in _refused_step(fmus["logistic"], 0.15)
 
 
 def test_a_discrete_lti_plant_steps_whole_samples_as_a_hand_loop(fmus):
@@ -134,10 +145,8 @@ def test_a_discrete_lti_plant_steps_whole_samples_as_a_hand_loop(fmus):
             expected.append(x)
         x = A @ x + B
     np.testing.assert_allclose(np.column_stack([result["x[1]"], result["x[2]"]]), expected, rtol=1e-13, atol=1e-15)
-    messages = []
-    with pytest.raises(Exception, match="fmi2DoStep"):
-        simulate(fmus["dlti"], 1.0, 0.25, messages)
-    assert any("sample_time" in m and "2.5 samples" in m for m in messages), messages
+    assert "sample_time: a step of a discrete block covers whole samples of T = 0.1; h = 0.25 is 2.5 samples" \
+        in _refused_step(fmus["dlti"], 0.25)
     names = {v.name for v in read_model_description(str(fmus["dlti"])).modelVariables}
     assert {"sample_time", "substep_budget"} <= names
 
@@ -147,3 +156,41 @@ def test_a_continuous_lti_definition_is_unchanged_by_the_discrete_option():
     definition = plant_definition("plant", model, [1.0, 0.0], {}, "")
     assert [p.name for p in definition.parameters] == ["A", "B", "C", "D", "x0"]
     assert definition.description == "LTI plant x' = A x + B u, y = C x + D u (exact step for linear inputs)"
+
+
+def test_an_fmu_state_saved_serialized_and_restored_gives_the_same_steps_again(fmus):
+    slave, refs = started(fmus["pendulum"], "pendulum")
+    outputs = [refs["x[1]"], refs["x[2]"]]
+
+    def run(t):
+        values = []
+        for k in range(20):
+            slave.setReal([refs["u"]], [math.cos(t)])
+            slave.doStep(t, 0.01)
+            t += 0.01
+            values.append(slave.getReal(outputs))
+        return values
+    try:
+        run(0.0)
+        saved = slave.getFMUstate()
+        data = slave.serializeFMUstate(saved)
+        first = run(0.2)
+        slave.setFMUstate(slave.deSerializeFMUstate(data))
+        assert run(0.2) == first
+        slave.freeFMUstate(saved)
+    finally:
+        slave.terminate()
+        slave.freeInstance()
+
+
+def test_fmus_without_output_derivatives_refuse_them(fmus):
+    slave, refs = started(fmus["pendulum"], "pendulum")
+    try:
+        slave.doStep(0.0, 0.01)
+        with pytest.raises(Exception, match="status 3"):
+            slave.getRealOutputDerivatives([refs["y"]], [1])
+        slave.doStep(0.01, 0.01)                                   # refused, nothing changed: it goes on
+    finally:
+        slave.terminate()
+        slave.freeInstance()
+    assert read_model_description(str(fmus["pendulum"])).coSimulation.maxOutputDerivativeOrder == 0

@@ -6,11 +6,10 @@ import math
 
 import numpy as np
 import pytest
-from fmpy import extract, read_model_description
-from fmpy.fmi2 import FMU2Slave
+from fmpy import read_model_description
 
 from fmus.runtime.kinds import sources as kinds
-from kinds_support import build_all, simulate
+from kinds_support import build_all, simulate, started
 from observers.checks import ParameterError
 from plants.sources import PRBS
 
@@ -99,17 +98,6 @@ def test_a_bad_setting_is_refused_at_build_time_naming_it(make, field):
         make()
 
 
-def _slave(path, name):
-    description = read_model_description(str(path))
-    slave = FMU2Slave(guid=description.guid, unzipDirectory=extract(str(path)), instanceName=name,
-                      modelIdentifier=description.coSimulation.modelIdentifier)
-    slave.instantiate()
-    slave.setupExperiment(startTime=0.0)
-    slave.enterInitializationMode()
-    slave.exitInitializationMode()
-    return slave, {v.name: v.valueReference for v in description.modelVariables}
-
-
 @pytest.mark.parametrize("model, derivative", [
     ("sine", lambda t: 2.0 * 3 * np.pi * np.cos(3 * np.pi * t + 0.3)),
     ("ramp", lambda t: 3.0 * (0.5 <= t < 1.5)),
@@ -119,7 +107,7 @@ def _slave(path, name):
     ("step", lambda t: 0.0),
 ])
 def test_the_exact_output_derivative_is_given_by_fmi2GetRealOutputDerivatives(fmus, model, derivative):
-    slave, refs = _slave(fmus[model], model)
+    slave, refs = started(fmus[model], model)
     t, h = 0.0, 0.07
     try:
         for _ in range(25):
@@ -138,7 +126,7 @@ def test_the_exact_output_derivative_is_given_by_fmi2GetRealOutputDerivatives(fm
 def test_the_derivative_of_a_smooth_source_makes_the_linear_input_of_a_step_exact(fmus):
     """A master sending y(t) and dy/dt(t) of a ramp as the input and its derivative: the consumer's
     linear input is exact over the whole step (what the derivative is for)."""
-    slave, refs = _slave(fmus["ramp"], "ramp")
+    slave, refs = started(fmus["ramp"], "ramp")
     try:
         slave.doStep(0.0, 0.6)
         value, = slave.getReal([refs["y"]])
