@@ -147,6 +147,27 @@ def _power(base: float, exponent: float) -> float:
 _ARITHMETIC = {kind: _safe(_power if kind is ast.Pow else function) for kind, function in _BINARY.items()}
 
 
+def _plain(kind, left: "Evaluator", right: "Evaluator", exponent: int | None = None) -> "Evaluator | None":
+    """``left op right`` as one closure for the operators that never raise on floats (+, -, *: an
+    overflow is inf) and for a power of a whole ``exponent`` from 1 to 64 (the same float as
+    :func:`_power`); the per-step cost of an expression plant.  None for the others (guarded)."""
+    if kind is ast.Pow and exponent is not None:
+        def power(t, x, u, p):
+            base = left(t, x, u, p)
+            try:
+                return base ** exponent
+            except OverflowError:
+                return math.inf
+        return power
+    if kind is ast.Add:
+        return lambda t, x, u, p: left(t, x, u, p) + right(t, x, u, p)
+    if kind is ast.Sub:
+        return lambda t, x, u, p: left(t, x, u, p) - right(t, x, u, p)
+    if kind is ast.Mult:
+        return lambda t, x, u, p: left(t, x, u, p) * right(t, x, u, p)
+    return None
+
+
 # ------------------------------------------------------------------------------------------ checking
 def _check_text(text, source: Source) -> str:
     if not isinstance(text, str):
@@ -271,7 +292,13 @@ class _Compiler:
             hint = _HINTS.get(type(node.op))
             raise self.refuse(node, "operator not allowed" + (f" ({hint})" if hint else ""))
         left, right = self.build(node.left, depth), self.build(node.right, depth)
-        return lambda t, x, u, p: function(left(t, x, u, p), right(t, x, u, p))
+        if isinstance(node.op, ast.Mult) and isinstance(node.left, ast.Name) and node.left.id in self.names.parameters:
+            index = self.names.parameters[node.left.id] - 1      # a coefficient times a term: one call less
+            return lambda t, x, u, p: p[index] * right(t, x, u, p)
+        exponent = node.right.value if isinstance(node.right, ast.Constant) and type(node.right.value) is int \
+            and 1 <= node.right.value <= 64 else None
+        return _plain(type(node.op), left, right, exponent) or \
+            (lambda t, x, u, p: function(left(t, x, u, p), right(t, x, u, p)))
 
     def _Compare(self, node: ast.Compare, depth: int) -> Evaluator:
         if len(node.ops) != 1:
@@ -329,6 +356,10 @@ class VectorFunction:
 
     def __call__(self, t: float, x: np.ndarray, u: np.ndarray, p: np.ndarray) -> np.ndarray:
         t, x, u, p = float(t), x.tolist(), u.tolist(), p.tolist()     # Python floats: several times faster
+        return np.array([part(t, x, u, p) for part in self.parts], dtype=float)
+
+    def of_lists(self, t: float, x: list, u: list, p: list) -> np.ndarray:
+        """As calling it, with ``t`` a float and ``x``, ``u``, ``p`` lists of floats (no conversion)."""
         return np.array([part(t, x, u, p) for part in self.parts], dtype=float)
 
 

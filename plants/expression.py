@@ -80,8 +80,12 @@ class ExpressionPlant(Block):
 
     def _integrate(self, t: float, h: float, u: Segment) -> np.ndarray:
         count = substep_count(h, self.max_substep, budget=self.substep_budget)
-        f, p, start, slope = self.f, self.p, u.start, u.slope
-        return rk4_step(lambda s, x: f(s, x, start + (s - t) * slope, p), t, self.x, h, count)
+        f, p, start, slope = self.f.of_lists, self.p.tolist(), u.start.tolist(), u.slope.tolist()
+
+        def rhs(s: float, x: np.ndarray) -> np.ndarray:       # on Python floats: the per-step cost
+            elapsed = s - t
+            return f(s, x.tolist(), [a + elapsed * b for a, b in zip(start, slope)], p)
+        return rk4_step(rhs, float(t), self.x, h, count)
 
     def _samples(self, t: float, h: float, u: Segment) -> np.ndarray:
         T = self.sample_time

@@ -27,6 +27,7 @@
  *   get_real/get_integer/get_boolean/get_string(vrs) -> list,
  *   set_real/set_integer/set_boolean/set_string(vrs, values),
  *   set_real_input_derivatives(vrs, orders, values), clear_input_derivatives(vrs),
+ *   get_real_output_derivatives(vrs, orders) -> list (fmi2GetRealOutputDerivatives),
  *   get_fmu_state(loader={"fmi": 2|3, "state": name}) -> obj, set_fmu_state(obj),
  *   loader_fields(obj) -> (loader dict or None, time, initialized),
  *   serialize_fmu_state(obj) -> bytes, deserialize_fmu_state(bytes) -> obj,
@@ -716,6 +717,27 @@ static fmi2Status set_real_input_derivatives(fmi2Component component, const fmi2
     })
 }
 
+static fmi2Status get_real_output_derivatives(fmi2Component component, const fmi2ValueReference vr[], size_t nvr,
+                                              const fmi2Integer order[], fmi2Real value[])
+{
+    COMPONENT
+    WITH_GIL({
+        PyObject *orders = PyList_New((Py_ssize_t)nvr);
+        for (size_t i = 0; orders && i < nvr; i++) PyList_SET_ITEM(orders, (Py_ssize_t)i, PyLong_FromLong(order[i]));
+        PyObject *values = NULL;
+        status_ = call(c, "get_real_output_derivatives", Py_BuildValue("(NN)", reference_list(vr, nvr), orders),
+                       &values);
+        if (values && (!PyList_Check(values) || (size_t)PyList_Size(values) != nvr)) {
+            Py_CLEAR(values);
+            log_message(c, fmi2Error, "logStatusError", "slave returned a list of the wrong length");
+            status_ = fmi2Error;
+        }
+        for (size_t i = 0; values && i < nvr; i++) value[i] = PyFloat_AsDouble(PyList_GET_ITEM(values, i));
+        Py_XDECREF(values);
+        if (PyErr_Occurred()) status_ = python_error(c, "fmi2GetRealOutputDerivatives");
+    })
+}
+
 static fmi2Status clear_input_derivatives(fmi2Component component, const fmi2ValueReference vr[], size_t nvr)
 {
     COMPONENT
@@ -840,7 +862,7 @@ __attribute__((visibility("default"))) const ObsfmuBridge *obsfmu_bridge(void)
         get_real, get_integer, get_boolean, get_string, set_real, set_integer, set_boolean, set_string,
         get_fmu_state, machine_of, set_fmu_state, free_fmu_state, serialized_fmu_state_size, serialize_fmu_state,
         deserialize_fmu_state, set_real_input_derivatives, clear_input_derivatives, do_step, refused,
-        do_step_batched,
+        do_step_batched, get_real_output_derivatives,
     };
     return &table;
 }

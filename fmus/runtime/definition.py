@@ -124,6 +124,9 @@ class FmuDefinition:
     default_experiment: dict[str, float] | None = None
     #: canHandleVariableCommunicationStepSize: False for blocks that accept one step length only
     variable_step: bool = True
+    #: maxOutputDerivativeOrder = 1: the block's ``derivative(t)`` is the time derivative of its one output
+    #: port (the sources), read by fmi2GetRealOutputDerivatives
+    output_derivatives: bool = False
 
     def to_json(self) -> str:
         return json.dumps(asdict(self), indent=1)

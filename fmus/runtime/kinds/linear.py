@@ -16,10 +16,14 @@ from plants.lti import LTIPlant
 from ..definition import FmuDefinition, Parameter, Port
 from . import register
 
-__all__ = ["plant_definition", "observer_definition", "feedback_definition"]
+__all__ = ["plant_definition", "observer_definition", "feedback_definition", "vector_unit"]
+
 
 @register("lti-plant")
 def _lti_plant(p, options):
+    if "sample_time" in p:              # discrete: x[k+1] = A x[k] + B u[k]
+        model = StateSpace.checked(p["A"], p["B"], p["C"], p["D"], dt=float(p["sample_time"]))
+        return LTIPlant(model, x0=p["x0"], substep_budget=float(p["substep_budget"]))
     return LTIPlant(p["A"], p["B"], p["C"], p["D"], p["x0"])
 
 
@@ -33,12 +37,16 @@ def _state_feedback(p, options):
     return StateFeedback(p["K"])
 
 
-def _vector_unit(units: dict, key: str):
+def vector_unit(values):
     """Units of a vector: one string when all entries share it, else the list (or None)."""
-    values = units.get(key) or None
-    if values and len(set(values)) == 1:
-        return values[0]
-    return values
+    if isinstance(values, str) or not values:
+        return values or None
+    values = list(values)
+    return values[0] if len(set(values)) == 1 else values
+
+
+def _vector_unit(units: dict, key: str):
+    return vector_unit(units.get(key))
 
 
 def _model_parameters(model: StateSpace) -> list[Parameter]:
@@ -57,17 +65,29 @@ def _signal_ports(model: StateSpace, units: dict) -> tuple[Port, Port]:
     return u, y
 
 
-def plant_definition(model_name: str, model: StateSpace, x0, units: dict, description: str) -> FmuDefinition:
-    """LTI plant FMU: parameters A, B, C, D, x0; input u; outputs y and the true state x."""
+def plant_definition(model_name: str, model: StateSpace, x0, units: dict, description: str,
+                     substep_budget=None) -> FmuDefinition:
+    """LTI plant FMU: parameters A, B, C, D, x0; input u; outputs y and the true state x.
+
+    A discrete ``model`` (``model.dt > 0``) adds the parameters ``sample_time`` (= ``model.dt``) and
+    ``substep_budget``: a step covers whole samples (any other is refused, fmi2Discard), ``u[k]`` the
+    input at ``t_k``.  A continuous model's FMU has neither (and is what it always was).
+    """
     u, y = _signal_ports(model, units)
+    timing = []
+    if model.discrete:
+        timing = [Parameter.scalar("sample_time", model.dt, "sample time T of x[k+1] = A x[k] + B u[k]", "s"),
+                  Parameter.substep_budget(substep_budget)]
+    law = "x[k+1] = A x[k] + B u[k], y = C x + D u (a step covers whole samples)" if model.discrete else \
+        "x' = A x + B u, y = C x + D u (exact step for linear inputs)"
     return FmuDefinition(
         model_name=model_name,
         kind="lti-plant",
         feedthrough=bool(np.any(model.D)),
-        description=description or "LTI plant x' = A x + B u, y = C x + D u (exact step for linear inputs)",
+        description=description or f"LTI plant {law}",
         parameters=_model_parameters(model) + [
             Parameter.of("x0", x0, "initial state x(0)", _vector_unit(units, "state_units")),
-        ],
+        ] + timing,
         inputs=[u],
         outputs=[y, Port("x", model.n, "true state x", _vector_unit(units, "state_units"))],
     )

@@ -88,6 +88,28 @@ class BlockOfParameters:
                               f"{type(exc).__name__}: {exc}") from None
         return float(self._outputs_cache[port][index])
 
+    def get_real_output_derivatives(self, vrs, orders) -> list[float]:
+        """``fmi2GetRealOutputDerivatives``: the first derivatives of outputs at the current time, from the
+        block's ``derivative(t)`` (FMUs built with ``output_derivatives``: one output port).  :class:`Refused`
+        for an FMU without them, an order other than 1 or a value reference that is not an output."""
+        if not self.definition.output_derivatives:
+            raise Refused("fmi2GetRealOutputDerivatives: this FMU provides no output derivatives "
+                          "(maxOutputDerivativeOrder = 0)")
+        offsets = self._output_offsets
+        for vr, order in zip(vrs, orders):
+            if vr not in offsets:
+                raise Refused(f"fmi2GetRealOutputDerivatives: value reference {vr} is not an output")
+            if order != 1:
+                raise Refused(f"fmi2GetRealOutputDerivatives: order {order} for value reference {vr}: only first "
+                              "derivatives (maxOutputDerivativeOrder = 1)")
+        block = self._try_block()
+        if block is None:
+            raise Refused(f"output derivatives cannot be computed: the parameters do not define a valid block: "
+                          f"{self._block_error}")
+        with quiet_numerics():
+            derivative = np.atleast_1d(np.asarray(block.derivative(self._time), dtype=float))
+        return derivative[[offsets[vr] for vr in vrs]].tolist()
+
     def _output_fault(self, outputs: dict[str, np.ndarray], bound: float) -> str | None:
         """The first output element that is not finite or beyond ``bound``."""
         for port, values in outputs.items():

@@ -30,7 +30,7 @@ class ModelDescription:
         """pythonfmu's description plus units, mode ranges and a complete ModelStructure."""
         root = super().to_xml(model_options or {})
         root.find("CoSimulation").attrib.update(CAPABILITIES, canHandleVariableCommunicationStepSize=str(
-            self.definition.variable_step).lower())
+            self.definition.variable_step).lower(), maxOutputDerivativeOrder=str(int(self.definition.output_derivatives)))
         self._add_units(root)
         for variable in root.iter("ScalarVariable"):
             if variable.get("name", "").endswith("_interpolation"):
