@@ -92,9 +92,13 @@ def _registry() -> dict[str, Scenario]:
 
 
 def get(name: str) -> Scenario:
+    """The scenario ``name``, or the scenario of the system file ``name`` (a path ending in .toml)."""
     try:
         return SCENARIOS[name]
     except KeyError:
+        from ..system import is_system_file, scenario_from_file
+        if is_system_file(name):
+            return scenario_from_file(name)
         raise SimulationError(f"unknown scenario {name!r}; available: {', '.join(SCENARIOS)}") from None
 
 

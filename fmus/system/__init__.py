@@ -1,0 +1,55 @@
+"""Your own system in one TOML file: components, connections, experiment and report (issue 26).
+
+``load_system(path)`` reads and checks a file into a :class:`~fmus.system.model.SystemSpec`;
+``scenario_from_file(path)`` gives the :class:`~fmus.scenarios.Scenario` that ``obsfmu
+run|build|export|sweep|report --config FILE`` run; ``field_reference()`` is the generated markdown of
+``docs/system-file-reference.md``.  See docs/your-own-system.md and the design note of the layout.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from .load import load_system
+from .model import SystemSpec
+
+__all__ = ["load_system", "scenario_from_file", "field_reference", "SystemSpec", "is_system_file"]
+
+_CACHE: dict[tuple, object] = {}
+
+
+def scenario_from_file(path: Path | str):
+    """The scenario of the system file ``path`` (read once per content: cached by path and modification)."""
+    path = Path(path)
+    try:
+        stat = path.stat()
+        key = (str(path.resolve()), stat.st_mtime_ns, stat.st_size)
+    except OSError:
+        key = None
+    if key is None or key not in _CACHE:
+        scenario = load_system(path).scenario()
+        if key is None:
+            return scenario
+        _CACHE[key] = scenario
+    return _CACHE[key]
+
+
+def is_system_file(name: str) -> bool:
+    """``name`` is a path to a ``.toml`` file (not a scenario's name)."""
+    return name.endswith(".toml") and Path(name).is_file()
+
+
+def field_reference() -> str:
+    """The field reference of the system file (markdown), generated from the registry."""
+    from .load import COMPARE_FIELDS, EXPERIMENT_FIELDS, TOP_FIELDS
+    from .schema import reference
+    return reference({
+        "Top level": ("The file's own fields, before any table.", TOP_FIELDS),
+        "[experiment]": ("The run's defaults (`obsfmu run` options override them).", EXPERIMENT_FIELDS),
+        "[values]": ("`\"component.input\" = number` (or a list for a whole port, or `component.input[i]`): "
+                     "the value of an input deliberately left unconnected. Every input is connected or given "
+                     "here.", ()),
+        "[[report.compare]]": ("What the summary and the figure compare (one table per pair). `[report]` may "
+                               "also name `reference = \"file.csv\"`: a CSV of the run's columns to compare with.",
+                               COMPARE_FIELDS),
+    })

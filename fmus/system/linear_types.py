@@ -1,0 +1,192 @@
+"""Component types ``lti``, ``expression``, ``luenberger`` and ``state-feedback`` of a system file.
+
+The observer and controller are designed here as in the single-plant design file (:mod:`fmus.config`):
+exactly one of ``poles``, ``t_settle`` (with ``form``), ``shift`` or the gain itself; a designed gain
+must place the poles and keep the transient bounded.  Each designed gain is added to the build's notes.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from observers.checks import ParameterError, require_hurwitz
+from observers.lti_model import StateSpace
+from observers.modal import is_controllable, is_observable, observer_gain, place
+from observers.standard_forms import FORMS
+
+from ..config import _gain, _require_bounded_transient
+from ..runtime.kinds.expression import expression_plant_definition
+from ..runtime.kinds.linear import feedback_definition, observer_definition, plant_definition
+from .schema import Context, Field, register
+
+__all__ = ["model_of"]
+
+_UNITS = (
+    Field("state_units", "units", "unit of the state (one, or one per state)", None, example='["A", "rad/s", "rad"]'),
+    Field("input_units", "units", "unit of the input u", None, example='"V"'),
+    Field("output_units", "units", "unit of the output y", None, example='"rad"'),
+)
+_SAMPLE_TIME = Field("sample_time", "number", "sample time T: the plant is discrete, x[k+1] = ... (absent: "
+                     "continuous)", None, "s", "0.01")
+
+
+def _expanded_units(values: dict, model: StateSpace) -> dict:
+    units = {}
+    for key, size in (("state_units", model.n), ("input_units", model.m), ("output_units", model.p)):
+        unit = values.get(key)
+        if unit is None:
+            continue
+        if isinstance(unit, str):
+            unit = [unit] * size
+        elif len(unit) != size:
+            raise ParameterError(f"{key}: expected {size} units (one per entry), got {len(unit)}")
+        units[key] = list(unit)
+    return units
+
+
+def model_of(values: dict, prefix: str) -> StateSpace:
+    """The checked state-space model of an ``lti`` component."""
+    dt = values["sample_time"]
+    return StateSpace.checked(values["A"], values["B"], values["C"], values["D"], prefix=prefix,
+                              dt=0.0 if dt is None else dt)
+
+
+def _define_lti(model_name: str, values: dict, context: Context) -> list:
+    model = model_of(values, context.prefix)
+    n = model.n
+    x0 = np.zeros(n) if values["x0"] is None else values["x0"]
+    if np.size(x0) != n:
+        raise ParameterError(f"{context.prefix}x0: expected {n} entries (one per state), got {np.size(x0)}")
+    try:
+        units = _expanded_units(values, model)
+    except ParameterError as exc:
+        raise ParameterError(f"{context.prefix}{exc}") from None
+    return [plant_definition(model_name, model, x0, units, values["description"])]
+
+
+register("lti", "Linear plant `x' = A x + B u`, `y = C x + D u` (with `sample_time`: `x[k+1] = A x[k] + B u[k]`). "
+         "Ports: input `u` (size of B's columns), outputs `y` and the true state `x`.", (
+             Field("A", "matrix", "state matrix (n x n)", unit="1/s", example="[[0, 1], [-2, -3]]"),
+             Field("B", "matrix", "input matrix (n x m); absent: no input", None, example="[[0], [1]]"),
+             Field("C", "matrix", "output matrix (p x n); absent: the identity", None, example="[[1, 0]]"),
+             Field("D", "matrix", "feedthrough matrix (p x m); absent: zero", None, example="[[0]]"),
+             Field("x0", "vector", "initial state (absent: zero)", None, example="[0.1, 0]"),
+             _SAMPLE_TIME) + _UNITS, _define_lti)
+
+
+def _plant(values: dict, context: Context, kind: str) -> tuple[StateSpace, dict]:
+    """The lti component ``values["plant"]`` names: its model and units."""
+    name = values["plant"]
+    other = context.others.get(name)
+    if other is None or other[0] != "lti":
+        what = "no component" if other is None else f"a component of kind {other[0]!r}"
+        raise ParameterError(f"{context.prefix}plant: {name!r} is {what}; the {kind} needs an lti component "
+                             "defined before it")
+    model = model_of(other[1], f"components.{name}.")
+    if model.discrete:
+        raise ParameterError(f"{context.prefix}plant: {name!r} is discrete (sample_time); the {kind} is designed "
+                             "for a continuous lti plant")
+    return model, _expanded_units(other[1], model)
+
+
+def _design_fields(gain: str, shape: str, doc: str) -> tuple[Field, ...]:
+    return (
+        Field("plant", "component", "the lti component it is designed for", example='"plant"'),
+        Field("poles", "poles", f"{doc} poles (n of them)", None, "1/s", "[[-2, 3], [-2, -3], -5]"),
+        Field("t_settle", "number", "settling time: poles of a standard form", None, "s", "0.2"),
+        Field("form", "choice", "standard form of the t_settle poles", "binomial", choices=FORMS),
+        Field("shift", "number", "the plant's eigenvalues moved left by shift", None, "1/s", "5"),
+        Field(gain, "matrix", f"the gain itself ({shape}), instead of a design", None, example="[[1.5, 0.3]]"),
+    )
+
+
+def _table(values: dict, keys) -> dict:
+    """The design request as :func:`fmus.config._gain` reads it (only the fields the file gave)."""
+    return {key: values[key] for key in keys if key in values["given"]}
+
+
+def _poles_text(poles) -> str:
+    return ", ".join(f"{complex(p):.6g}".strip("()").replace("+0j", "").replace("-0j", "") for p in poles)
+
+
+def _matrix_text(matrix) -> str:
+    return np.array2string(np.asarray(matrix), precision=6, separator=", ", max_line_width=10 ** 6)
+
+
+def _define_observer(model_name: str, values: dict, context: Context) -> list:
+    model, units = _plant(values, context, "luenberger observer")
+    section = context.prefix.rstrip(".")
+    if not is_observable(model.A, model.C):
+        raise ParameterError(f"{context.prefix}plant: the pair (A, C) of {values['plant']!r} is not observable; "
+                             "no observer can reconstruct the state")
+    table = _table(values, ("poles", "t_settle", "shift", "form", "N"))
+    N, poles = _gain(section, table, model, "N", (model.n, model.p),
+                     lambda p, name: observer_gain(model.A, model.C, p, name))
+    require_hurwitz(f"{section}.N (A - N C)", model.A - N @ model.C)
+    if poles is not None:
+        _require_bounded_transient(f"{section}.poles", model.A - N @ model.C)
+    poles = np.linalg.eigvals(model.A - N @ model.C) if poles is None else poles
+    x_hat0 = np.zeros(model.n) if values["x_hat0"] is None else values["x_hat0"]
+    if np.size(x_hat0) != model.n:
+        raise ParameterError(f"{context.prefix}x_hat0: expected {model.n} entries, got {np.size(x_hat0)}")
+    context.notes.append(f"{section}: N = {_matrix_text(N)}; eig(A - N C) = [{_poles_text(poles)}]")
+    return [observer_definition(model_name, model, N, x_hat0, units, values["description"], poles)]
+
+
+register("luenberger", "Luenberger observer of an lti component: `x_hat' = A x_hat + B u + N (y - C x_hat - D u)`. "
+         "Give exactly one of `poles`, `t_settle` (with `form`), `shift` or `N`. Inputs `u`, `y`; outputs `x_hat`, "
+         "`y_hat`.", _design_fields("N", "n x p", "observer") + (
+             Field("x_hat0", "vector", "initial estimate (absent: zero)", None, example="[0, 0]"),),
+         _define_observer, depends=("plant",))
+
+
+def _define_feedback(model_name: str, values: dict, context: Context) -> list:
+    model, units = _plant(values, context, "state feedback")
+    section = context.prefix.rstrip(".")
+    if model.m == 0:
+        raise ParameterError(f"{context.prefix}plant: {values['plant']!r} has no input (B absent)")
+    if not is_controllable(model.A, model.B):
+        raise ParameterError(f"{context.prefix}plant: the pair (A, B) of {values['plant']!r} is not controllable; "
+                             "state feedback cannot place the poles")
+    table = _table(values, ("poles", "t_settle", "shift", "form", "K"))
+    K, poles = _gain(section, table, model, "K", (model.m, model.n), lambda p, name: place(model.A, model.B, p, name))
+    require_hurwitz(f"{section}.K (A - B K)", model.A - model.B @ K)
+    if poles is not None:
+        _require_bounded_transient(f"{section}.poles", model.A - model.B @ K)
+    poles = np.linalg.eigvals(model.A - model.B @ K) if poles is None else poles
+    context.notes.append(f"{section}: K = {_matrix_text(K)}; eig(A - B K) = [{_poles_text(poles)}]")
+    return [feedback_definition(model_name, K, units, values["description"])]
+
+
+register("state-feedback", "State feedback `u = -K x_hat + r` for an lti component. Give exactly one of `poles`, "
+         "`t_settle` (with `form`), `shift` or `K`. Inputs `x_hat`, `r`; output `u`.",
+         _design_fields("K", "m x n", "closed-loop"), _define_feedback, depends=("plant",))
+
+
+def _define_expression(model_name: str, values: dict, context: Context) -> list:
+    n = len(values["f"])
+    if values["states"] is not None and values["states"] != n:
+        raise ParameterError(f"{context.prefix}f: {n} expressions, but states = {values['states']}")
+    x0 = np.zeros(n) if values["x0"] is None else values["x0"]
+    return [expression_plant_definition(
+        model_name, values["f"], values["h"], x0, inputs=values["inputs"], parameters=values["parameters"],
+        parameter_units=values["parameter_units"], sample_time=values["sample_time"],
+        max_substep=values["max_substep"], state_units=values["state_units"], output_units=values["output_units"],
+        input_units=values["input_units"], field_prefix=context.prefix, description=values["description"])]
+
+
+register("expression", "Plant of expressions: `dx/dt = f(t, x, u, p)`, `y = h(t, x, u, p)` (with `sample_time`: "
+         "`x[k+1] = f`). `x`, `u`, `p` are indexed from 1; named parameters are FMU parameters too. Ports: input `u` "
+         "(if inputs > 0), outputs `y` and `x`.", (
+             Field("states", "integer", "number of states (absent: the number of f's expressions)", None,
+                   example="2"),
+             Field("inputs", "integer", "size of the input u", 0, example="1"),
+             Field("parameters", "table", "named parameters of the expressions (FMU parameters)", None,
+                   example="{ g = 9.81, l = 0.5 }"),
+             Field("parameter_units", "unit-table", "their units", None, example='{ g = "m/s2" }'),
+             Field("f", "expressions", "right-hand side, one expression per state", example='["x[2]", "-x[1]"]'),
+             Field("h", "expressions", "output, one expression per output", example='["x[1]"]'),
+             Field("x0", "vector", "initial state (absent: zero)", None, example="[0.5, 0]"),
+             _SAMPLE_TIME,
+             Field("max_substep", "number", "longest RK4 sub-step of a continuous plant", 1e-3, "s", "1e-4"),
+         ) + _UNITS, _define_expression)

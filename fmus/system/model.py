@@ -1,0 +1,128 @@
+"""The checked system of a file, and the :class:`~fmus.scenarios.Scenario` it runs as.
+
+:meth:`SystemSpec.scenario` makes a scenario like a paper's: its FMUs (``<name>_<component>``), the
+instances in the order of the file, the connections, the explicit input values as start values, the
+experiment's defaults, and a summary and figure from ``[[report.compare]]``: per comparison the final
+error and the convergence time (from when ``|truth - estimate|`` stays below the tolerance), per
+component; the figure shows truth vs estimate per entry and the error, with the FMUs' units.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["ComponentSpec", "SystemSpec"]
+
+NO_REFERENCE = ("reference: none applies -- a user's system file has no independent monolithic solution "
+                "(name a CSV as [report] reference = \"file.csv\" to compare with one)")
+
+
+@dataclass
+class ComponentSpec:
+    """One component: its type, its field values (defaults filled in), the fields given, its FMU definitions."""
+
+    instance: str
+    kind: str
+    values: dict
+    given: set
+    definitions: list
+
+
+@dataclass
+class SystemSpec:
+    """A checked system file (see :func:`fmus.system.load.load_system`)."""
+
+    name: str
+    description: str
+    time_unit: str
+    components: dict[str, ComponentSpec]
+    connections: list
+    values: dict[str, dict[str, float]]
+    experiment: dict
+    compares: list[dict]
+    notes: list[str] = field(default_factory=list)   #: the designed gains and poles
+    path: str = ""
+    reference: Path | None = None                     #: a CSV of the same columns to compare with
+
+    def definitions(self) -> list:
+        return [d for spec in self.components.values() for d in spec.definitions]
+
+    def scenario(self):
+        """The :class:`~fmus.scenarios.Scenario` of this system: run, export, sweep and report work on it."""
+        from ..scenarios import Scenario
+        experiment = self.experiment
+        return Scenario(
+            name=self.name, description=self.description or f"system file {self.path}",
+            definitions=self.definitions,
+            components=[(instance, spec.definitions[0].model_name, dict(self.values.get(instance, {})))
+                        for instance, spec in self.components.items()],
+            connections=list(self.connections), stop_time=experiment["stop_time"], step=experiment["step"],
+            order=experiment["master"], coupling=experiment["coupling"], summarize=self.summarize,
+            plot=self.plot if self.compares else None, time_unit=self.time_unit,
+            output_interval=experiment["output_interval"],
+            claim=f"No paper: the user's system file {Path(self.path).name}.")
+
+    # ------------------------------------------------------------------ summary and figure
+    def _pairs(self, result, compare) -> tuple[np.ndarray, np.ndarray]:
+        estimate = np.column_stack([result[c] for c in compare["estimate_columns"]])
+        truth = np.column_stack([result[c] for c in compare["truth_columns"]])
+        return estimate, truth
+
+    def summarize(self, result):
+        """Final error and convergence time per compared entry; the reference line (none, or the CSV's)."""
+        from ..metrics import format_time, time_to_stay_below
+        from ..scenarios import Summary
+        lines, metrics = [], {}
+        unit = result.time_unit
+        for compare in self.compares:
+            estimate, truth = self._pairs(result, compare)
+            error = truth - estimate
+            for j, (e_name, t_name) in enumerate(zip(compare["estimate_columns"], compare["truth_columns"])):
+                converged = time_to_stay_below(result.time, error[:, j], compare["tolerance"])
+                final = float(abs(error[-1, j]))
+                metrics[f"final_error {e_name}"] = final
+                metrics[f"convergence_time {e_name}"] = converged
+                column_unit = result.unit(t_name)
+                lines.append(f"{e_name} vs {t_name}: final |error| {final:.3g}{' ' + column_unit if column_unit else ''}, "
+                             f"below {compare['tolerance']:g} from {format_time(converged, unit)}")
+        if not lines:
+            lines.append("nothing compared (add [[report.compare]] tables with estimate and truth)")
+        return Summary(lines, metrics, self._reference(result))
+
+    def _reference(self, result) -> str:
+        if self.reference is None:
+            return NO_REFERENCE
+        from ..result import Result
+        try:
+            reference = Result.from_csv(self.reference)
+        except (OSError, ValueError) as exc:
+            return f"reference: {self.reference} cannot be read ({exc})"
+        common = [c for c in reference.columns if c in result.columns]
+        if not common:
+            return f"reference: {self.reference} has none of the run's columns"
+        inside = (reference.time >= result.time[0]) & (reference.time <= result.time[-1])
+        deviation = max(float(np.max(np.abs(np.interp(reference.time[inside], result.time, result[c])
+                                            - reference[c][inside]), initial=0.0)) for c in common)
+        return (f"reference: {self.reference.name}, max |run - reference| {deviation:.3g} over {len(common)} "
+                f"columns at its {int(inside.sum())} times")
+
+    def plot(self, result, path: Path) -> list[Path]:
+        """Truth vs estimate per compared entry and the errors (log scale), with the FMUs' units."""
+        from ..plotting import Curve, Panel, figure
+        panels, errors = [], []
+        for compare in self.compares:
+            estimate, truth = self._pairs(result, compare)
+            for j, (e_name, t_name) in enumerate(zip(compare["estimate_columns"], compare["truth_columns"])):
+                unit = result.unit(t_name)
+                panels.append(Panel(t_name, [Curve(t_name, result.time, truth[:, j], unit, "true", j),
+                                             Curve(e_name, result.time, estimate[:, j], unit, "estimate", j)]))
+                errors.append(Curve(f"{t_name} - {e_name}", result.time, truth[:, j] - estimate[:, j], unit,
+                                    "error", j))
+            errors.append(Curve(f"tolerance {compare['tolerance']:g}", result.time,
+                                np.full(result.time.shape, compare["tolerance"]), role="limit"))
+        panels.append(Panel("|error|", errors, log=True))
+        return figure(path, f"{self.name}: {self.description}" if self.description else self.name, panels,
+                      result.time_unit)

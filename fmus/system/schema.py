@@ -1,0 +1,166 @@
+"""The component types of a system file: a registry ``kind -> ComponentType``.
+
+A :class:`ComponentType` lists its :class:`Field` s (name, type, default or required, unit, one-line
+doc, example) and a ``define`` function that turns the checked field values of one component into its
+FMU definitions (:class:`~fmus.runtime.definition.FmuDefinition`) through the definition functions of
+:mod:`fmus.runtime.kinds`.  The definitions carry the component's ports, so connections are checked
+against them before anything is built.  The types themselves are registered by
+:mod:`fmus.system.linear_types` and :mod:`fmus.system.signal_types`; the field reference of the
+docs (``docs/system-file-reference.md``) is generated from this registry by :func:`reference`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+__all__ = ["Field", "ComponentType", "Context", "REQUIRED", "TYPES", "register", "component_type", "reference",
+           "FIELD_TYPES", "COMMON_FIELDS"]
+
+
+class _Required:
+    def __repr__(self) -> str:
+        return "REQUIRED"
+
+
+REQUIRED: Any = _Required()   #: the default of a field that must be given
+
+#: the value types a field may have, with how the reference describes them
+FIELD_TYPES = {
+    "number": "a finite number",
+    "integer": "a whole number",
+    "boolean": "true or false",
+    "string": "a text without control characters",
+    "choice": "one of the texts listed",
+    "vector": "a list of finite numbers",
+    "matrix": "a list of rows, each a list of finite numbers, all rows of one length",
+    "poles": "a list of poles: numbers, or [re, im] pairs for complex ones",
+    "units": "a unit (text), or a list of units, one per entry",
+    "expressions": "a list of expressions (texts, one per entry; see the expression language)",
+    "table": "a table of name = number",
+    "unit-table": "a table of name = unit (text)",
+    "component": "the name of another component of the file",
+    "connections": 'a list of texts "a.y -> b.u"',
+}
+
+
+@dataclass(frozen=True)
+class Field:
+    """One field of a component type (or of a section of the file)."""
+
+    name: str
+    type: str
+    doc: str
+    default: Any = REQUIRED
+    unit: str = ""
+    example: str = ""
+    choices: tuple[str, ...] = ()
+
+    def __post_init__(self):
+        if self.type not in FIELD_TYPES:
+            raise ValueError(f"field {self.name}: unknown type {self.type!r}")
+
+    @property
+    def required(self) -> bool:
+        return self.default is REQUIRED
+
+
+@dataclass
+class Context:
+    """What a ``define`` function may know beyond its own fields.
+
+    ``prefix`` names the component in messages (``components.plant.``); ``name`` is the system's; ``others`` maps every component
+    defined before this one to its ``(kind, values)``; ``folder`` is the system file's folder (relative
+    paths are read from there); ``notes`` collects what the build prints (designed gains and poles).
+    """
+
+    prefix: str
+    name: str = ""
+    others: dict[str, tuple[str, dict]] = field(default_factory=dict)
+    folder: Path = Path(".")
+    notes: list[str] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class ComponentType:
+    """A kind of component: its fields and ``define(model_name, values, context) -> [FmuDefinition]``.
+
+    ``values`` holds every field (the defaults filled in) and the key ``"given"``: the names of the
+    fields the file gave.  ``depends``: the fields that name another component (defined first).
+    """
+
+    kind: str
+    doc: str
+    fields: tuple[Field, ...]
+    define: Callable[[str, dict, Context], list]
+    depends: tuple[str, ...] = ()
+
+    def field(self, name: str) -> Field | None:
+        return next((f for f in self.fields if f.name == name), None)
+
+
+#: fields every component has
+COMMON_FIELDS = (
+    Field("kind", "string", "the component's type (the headings of this reference)", example='"lti"'),
+    Field("description", "string", "one line for the FMU's description (default: the type's formula)", "",
+          example='"DC motor"'),
+)
+
+TYPES: dict[str, ComponentType] = {}
+
+
+def register(kind: str, doc: str, fields, define, depends=()) -> ComponentType:
+    """Add the component type ``kind``; its fields follow the common ones (kind, description)."""
+    if kind in TYPES:
+        raise RuntimeError(f"component type {kind!r} registered twice")
+    TYPES[kind] = ComponentType(kind, doc, COMMON_FIELDS + tuple(fields), define, tuple(depends))
+    return TYPES[kind]
+
+
+def component_type(kind: str) -> ComponentType | None:
+    """The registered type ``kind`` (None if unknown); importing the type modules on first use."""
+    from . import linear_types, signal_types  # noqa: F401  (register on import)
+    return TYPES.get(kind)
+
+
+def _cell(text: str) -> str:
+    return str(text).replace("|", "\\|")
+
+
+def _default(f: Field) -> str:
+    if f.required:
+        return "**required**"
+    if f.default is None or f.default == "":
+        return "optional"
+    return f"`{str(f.default).lower() if isinstance(f.default, bool) else f.default}`"
+
+
+def _table(fields) -> list[str]:
+    lines = ["| field | type | default | unit | meaning | example |", "|---|---|---|---|---|---|"]
+    for f in fields:
+        kind = f.type if not f.choices else "choice: " + ", ".join(f"`{c}`" for c in f.choices)
+        example = f"`{f.example}`" if f.example else ""
+        lines.append(f"| `{f.name}` | {_cell(kind)} | {_default(f)} | {_cell(f.unit)} | {_cell(f.doc)} | "
+                     f"{_cell(example)} |")
+    return lines
+
+
+def reference(sections: dict[str, tuple[str, tuple[Field, ...]]]) -> str:
+    """The field reference (markdown): the file's ``sections`` (title -> (doc, fields)), then every type."""
+    component_type("lti")
+    lines = ["# System file: field reference", "",
+             "Generated from the registry of `fmus/system/schema.py` by `obsfmu show --fields`; do not edit "
+             "by hand (`tests/test_system_file.py` checks that this file is the generated one).", "",
+             "## Value types", ""]
+    lines += [f"- **{name}**: {text}" for name, text in FIELD_TYPES.items()]
+    for title, (doc, fields) in sections.items():
+        lines += ["", f"## {title}", "", doc] + (["", *_table(fields)] if fields else [])
+    lines += ["", "## Component types", "",
+              "Every component is a table `[components.NAME]` with a `kind`; NAME is an identifier and "
+              "its FMU is called `<name>_<NAME>`. Components step in the order of the file (Gauss-Seidel)."]
+    for kind in sorted(TYPES):
+        entry = TYPES[kind]
+        lines += ["", f"### `{kind}`", "", entry.doc, ""] + _table(entry.fields)
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,166 @@
+"""Checking one value of a system file against its field's type; every mistake names the field.
+
+Limits are checked from the sizes alone, before any work: a matrix or vector longer than
+:data:`MAX_DIMENSION` (design size) or :data:`MAX_ENTRIES` (tables of break points) is refused with the
+limit in the message.  Texts hold no control characters (they go into the FMUs' XML and logs).
+"""
+
+from __future__ import annotations
+
+import math
+import unicodedata
+
+import numpy as np
+
+from observers.checks import ParameterError
+from observers.expressions import MAX_LENGTH
+
+from .schema import Field
+
+__all__ = ["check_value", "check_text", "MAX_DIMENSION", "MAX_ENTRIES"]
+
+MAX_DIMENSION = 500       #: rows and columns of a matrix (states, inputs, outputs of a design)
+MAX_ENTRIES = 100_000     #: entries of a vector (a table source's break points)
+MAX_TEXT = 1000           #: characters of a text field (names, units, descriptions, paths)
+
+
+def _is_number(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _number(where: str, value) -> float:
+    if not _is_number(value):
+        raise ParameterError(f"{where}: expected a number, got {_shown(value)}")
+    if not math.isfinite(value):
+        raise ParameterError(f"{where}: expected a finite number, got {value}")
+    return float(value)
+
+
+def _shown(value) -> str:
+    text = "true" if value is True else "false" if value is False else repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def check_text(where: str, value, *, lines: bool = False, limit: int = MAX_TEXT) -> str:
+    """A string without control characters (``lines``: tabs and newlines allowed) of at most ``limit``."""
+    if not isinstance(value, str):
+        raise ParameterError(f"{where}: expected a text, got {_shown(value)}")
+    if len(value) > limit:
+        raise ParameterError(f"{where}: {len(value)} characters, more than the limit of {limit}")
+    for character in value:
+        if unicodedata.category(character) == "Cc" and not (lines and character in "\t\n\r"):
+            raise ParameterError(f"{where}: holds the control character U+{ord(character):04X}")
+    return value
+
+
+def _vector(where: str, value, limit: int) -> np.ndarray:
+    if not isinstance(value, list):
+        raise ParameterError(f"{where}: expected a list of numbers, got {_shown(value)}")
+    if len(value) > limit:
+        raise ParameterError(f"{where}: {len(value)} entries, more than the limit of {limit}")
+    return np.array([_number(f"{where}[{i}]", v) for i, v in enumerate(value, start=1)], dtype=float)
+
+
+def _matrix(where: str, value) -> np.ndarray:
+    if not isinstance(value, list) or not value:
+        raise ParameterError(f"{where}: expected a list of rows (lists of numbers), got {_shown(value)}")
+    if len(value) > MAX_DIMENSION:
+        raise ParameterError(f"{where}: {len(value)} rows, more than the limit of {MAX_DIMENSION}")
+    for i, row in enumerate(value, start=1):
+        if not isinstance(row, list):
+            raise ParameterError(f"{where}: row {i} is {_shown(row)}, expected a list of numbers")
+        if len(row) > MAX_DIMENSION:
+            raise ParameterError(f"{where}: row {i} has {len(row)} entries, more than the limit of {MAX_DIMENSION}")
+        if len(row) != len(value[0]):
+            raise ParameterError(f"{where}: row {i} has {_entries(len(row))}, row 1 has {len(value[0])}")
+    if not value[0]:
+        raise ParameterError(f"{where}: the rows are empty")
+    return np.array([[_number(f"{where}[{i}][{j}]", v) for j, v in enumerate(row, start=1)]
+                     for i, row in enumerate(value, start=1)], dtype=float)
+
+
+def _entries(count: int) -> str:
+    return f"{count} entr{'y' if count == 1 else 'ies'}"
+
+
+def _poles(where: str, value) -> list:
+    if not isinstance(value, list) or not value:
+        raise ParameterError(f"{where}: expected a list of poles (numbers, or [re, im] pairs), got {_shown(value)}")
+    if len(value) > MAX_DIMENSION:
+        raise ParameterError(f"{where}: {len(value)} poles, more than the limit of {MAX_DIMENSION}")
+    for i, pole in enumerate(value, start=1):
+        if isinstance(pole, list):
+            if len(pole) != 2:
+                raise ParameterError(f"{where}[{i}]: expected a number or an [re, im] pair, got {_shown(pole)}")
+            _vector(f"{where}[{i}]", pole, 2)
+        else:
+            _number(f"{where}[{i}]", pole)
+    return value
+
+
+def _table(where: str, value, entry) -> dict:
+    if not isinstance(value, dict):
+        raise ParameterError(f"{where}: expected a table of name = value, got {_shown(value)}")
+    if len(value) > MAX_DIMENSION:
+        raise ParameterError(f"{where}: {len(value)} entries, more than the limit of {MAX_DIMENSION}")
+    return {check_text(f"{where}.{name}", name): entry(f"{where}.{name}", v) for name, v in value.items()}
+
+
+def _units(where: str, value):
+    if isinstance(value, list):
+        if len(value) > MAX_DIMENSION:
+            raise ParameterError(f"{where}: {len(value)} units, more than the limit of {MAX_DIMENSION}")
+        return [check_text(f"{where}[{i}]", v, limit=100) for i, v in enumerate(value, start=1)]
+    return check_text(where, value, limit=100)
+
+
+def _expressions(where: str, value) -> list[str]:
+    if not isinstance(value, list) or not value:
+        raise ParameterError(f"{where}: expected a list of expressions (texts), got {_shown(value)}")
+    if len(value) > MAX_DIMENSION:
+        raise ParameterError(f"{where}: {len(value)} expressions, more than the limit of {MAX_DIMENSION}")
+    return [check_text(f"{where}[{i}]", v, lines=True, limit=MAX_LENGTH) for i, v in enumerate(value, start=1)]
+
+
+def _integer(where: str, value) -> int:
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise ParameterError(f"{where}: expected a whole number, got {_shown(value)}")
+    if abs(value) > 2 ** 53:
+        raise ParameterError(f"{where}: {value} is beyond the limit of 2^53")
+    return value
+
+
+def _boolean(where: str, value) -> bool:
+    if not isinstance(value, bool):
+        raise ParameterError(f"{where}: expected true or false, got {_shown(value)}")
+    return value
+
+
+def _choice(where: str, value, choices) -> str:
+    check_text(where, value)
+    if value not in choices:
+        raise ParameterError(f"{where}: {value!r} is not one of {', '.join(choices)}")
+    return value
+
+
+_CHECKS = {
+    "number": _number,
+    "integer": _integer,
+    "boolean": _boolean,
+    "string": check_text,
+    "component": check_text,
+    "vector": lambda where, value: _vector(where, value, MAX_ENTRIES),
+    "matrix": _matrix,
+    "poles": _poles,
+    "units": _units,
+    "expressions": _expressions,
+    "table": lambda where, value: _table(where, value, _number),
+    "unit-table": lambda where, value: _table(where, value, lambda w, v: check_text(w, v, limit=100)),
+}
+
+
+def check_value(field: Field, where: str, value):
+    """``value`` checked against ``field`` (type, shape, limits); numbers as floats, arrays as numpy arrays."""
+    if field.type == "choice":
+        return _choice(where, value, field.choices)
+    return _CHECKS[field.type](where, value)
