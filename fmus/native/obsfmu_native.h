@@ -23,7 +23,7 @@
 #define OBSFMU_RECORD "obsfmu_native.txt"
 #define OBSFMU_STARTS "obsfmu_start.txt" /* start values of an exported copy (loader_common.h) */
 #define OBSFMU_BRIDGE_SYMBOL "obsfmu_bridge"
-#define OBSFMU_BRIDGE_ABI 3
+#define OBSFMU_BRIDGE_ABI 4
 
 /* What the loader keeps in an FMU state (one serialized format: the slave's, fmus/state_format.py).
  * The loader hands `fmi` and `state` to the slave's getFMUstate; machineOf() gives them back from any
@@ -88,6 +88,8 @@ typedef struct {
     fmi2Status (*doStepBatched)(fmi2Component c, fmi2Real t, fmi2Real h, const fmi2ValueReference vr[], size_t nvr,
                                 const fmi2Real value[], const fmi2Real slope[], const fmi2ValueReference out_vr[],
                                 size_t nout, fmi2Real out[], int *stepped);
+    /* the number of the slave's scalar variables (its value references 0 .. n-1) */
+    size_t (*variableCount)(fmi2Component c);
 } ObsfmuBridge;
 
 typedef const ObsfmuBridge *ObsfmuBridgeFunction(void);
