@@ -18,6 +18,7 @@
  *      never finalized (loader_common.h).
  *   3. It loads the BRIDGE (bridge.c, RTLD_LOCAL) and forwards every call to its function table.
  */
+#define _GNU_SOURCE /* dl_iterate_phdr */
 #include "fmi2Functions.h"
 #include "loader_common.h"
 

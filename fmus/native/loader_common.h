@@ -19,6 +19,7 @@
 #define OBSFMU_LOADER_COMMON_H
 
 #include <dlfcn.h>
+#include <link.h>
 #include <pthread.h>
 #include <stdarg.h>
 #include <stdatomic.h>
@@ -306,12 +307,69 @@ static void *load_python(const char *record, char *program, int *must_start, cha
     return python;
 }
 
+/* ------------------------------------------------------------------ one Python start per process */
+
+/* Every obsfmu loader (FMI 2.0 and 3.0, of any FMU) exports this mutex; the one of the loader loaded
+ * FIRST in the process guards finding and starting Python for all of them, so two FMUs instantiated at
+ * once from two threads never both start an interpreter (docs/portability.md, "One Python start per
+ * process").  Found in the list of loaded objects (dl_iterate_phdr: in load order), pinned
+ * (RTLD_NODELETE) so that it stays while any loader may still use it. */
+#define GUARD "obsfmu_python_start_guard_1"
+__attribute__((visibility("default"))) pthread_mutex_t obsfmu_python_start_guard_1 = PTHREAD_MUTEX_INITIALIZER;
+
+typedef struct {
+    char **names;
+    size_t count, capacity;
+} Loaded;
+
+static int note_loaded(struct dl_phdr_info *info, size_t size, void *data)
+{
+    (void)size;
+    Loaded *loaded = data;
+    if (info->dlpi_name == NULL || info->dlpi_name[0] == '\0') return 0; /* the program itself */
+    if (loaded->count == loaded->capacity) {
+        size_t capacity = loaded->capacity ? 2 * loaded->capacity : 64;
+        char **grown = realloc(loaded->names, capacity * sizeof(char *));
+        if (grown == NULL) return 1;
+        loaded->names = grown;
+        loaded->capacity = capacity;
+    }
+    size_t length = strlen(info->dlpi_name) + 1;
+    char *name = malloc(length);
+    if (name == NULL) return 1;
+    memcpy(name, info->dlpi_name, length);
+    loaded->names[loaded->count++] = name;
+    return 0;
+}
+
+/* The guard of the first loaded obsfmu loader (this one's if none is found: no worse than one per loader). */
+static pthread_mutex_t *process_guard(void)
+{
+    Loaded loaded = {NULL, 0, 0};
+    pthread_mutex_t *guard = NULL;
+    dl_iterate_phdr(note_loaded, &loaded);   /* names first: no dlopen while the list is locked */
+    for (size_t i = 0; i < loaded.count && guard == NULL; i++) {
+        void *object = dlopen(loaded.names[i], RTLD_LAZY | RTLD_NOLOAD);
+        guard = object ? (pthread_mutex_t *)dlsym(object, GUARD) : NULL;
+        if (guard != NULL) dlopen(loaded.names[i], RTLD_LAZY | RTLD_NOLOAD | RTLD_NODELETE); /* pinned */
+        if (object != NULL) dlclose(object);
+    }
+    for (size_t i = 0; i < loaded.count; i++) free(loaded.names[i]);
+    free(loaded.names);
+    return guard ? guard : &obsfmu_python_start_guard_1;
+}
+
 /* The bridge of this FMU, with a Python to run it; NULL and a message saying what is missing. */
 static const ObsfmuBridge *get_bridge(const char *resources, const char *record, char *message, size_t size)
 {
     pthread_mutex_lock(&lock);
     if (bridge == NULL && start_failure[0]) snprintf(message, size, "%s", start_failure);
-    if (bridge != NULL || start_failure[0]) goto done;
+    if (bridge != NULL || start_failure[0]) {
+        pthread_mutex_unlock(&lock);
+        return bridge;
+    }
+    pthread_mutex_t *guard = process_guard();
+    pthread_mutex_lock(guard);   /* held from "does Python run?" to "it runs" */
 
     char version[32], program[PATH_SIZE] = "", name[PATH_SIZE], path[2 * PATH_SIZE];
     obsfmu_record_value(record, "python_version", version, sizeof version);
@@ -349,6 +407,7 @@ static const ObsfmuBridge *get_bridge(const char *resources, const char *record,
     bridge_library = library;
     bridge = table();
 done:
+    pthread_mutex_unlock(guard);
     pthread_mutex_unlock(&lock);
     return bridge;
 }

@@ -28,7 +28,7 @@
  *      (FMI 3.0: "if loggingOn == fmi3False ... logMessage is not called"), except the reason of a
  *      failed instantiation.
  */
-#define _GNU_SOURCE /* getline */
+#define _GNU_SOURCE /* getline, dl_iterate_phdr */
 #include "fmi3Functions.h"
 #include "loader_common.h"
 
