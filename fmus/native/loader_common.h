@@ -524,8 +524,8 @@ static fmi2Status core_machine(Core *c, const char *call, void *state, unsigned 
 #define KNOWN_STATE(c, call, state)                                                                         \
     if ((state) == NULL) return refuse(c, "%s: FMUState is NULL", call);                                   \
     if (!handle_known(&states, (state)))                                                                    \
-        return refuse(c, "%s: FMUState %p is not a state of this FMU (it never issued it, or it was freed): "  \
-                      "nothing done", call, (void *)(state));
+        return refuse(c, "%s: FMUState %p is not a state of this FMU (another FMU's, a foreign pointer, or "   \
+                      "freed already): nothing done", call, (void *)(state));
 
 /* A state the bridge just made: registered, or freed again when it cannot be. */
 static fmi2Status issued(Core *c, const char *call, void **state)
@@ -575,8 +575,8 @@ static fmi2Status core_free_state(Core *c, const char *call, void **state)
                       "nothing freed", call, call);
     if (*state == NULL) return fmi2OK;
     if (!handle_remove(&states, *state))
-        return refuse(c, "%s: *FMUState %p is not a state of this FMU (it never issued it, or it was freed "
-                      "already): nothing freed", call, *state);
+        return refuse(c, "%s: *FMUState %p is not a state of this FMU (another FMU's, a foreign pointer, or "
+                      "freed already): nothing freed", call, *state);
     return after(c, c->bridge->freeFMUstate(c->inner, state));
 }
 
