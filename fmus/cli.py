@@ -246,10 +246,12 @@ def cmd_build(args) -> int:
 
     from .fmi3 import build_folder
 
-    out = check_directory("--out", args.out)
-    if args.config:
+    design = None
+    if args.config:  # checked whole before anything is written
         from .config import design_from_config, load_config
         design = design_from_config(load_config(args.config))
+    out = check_directory("--out", args.out)
+    if design:
         paths = [build_fmu(definition, build_folder(out, args.fmi_version), fmi_version=args.fmi_version)
                  for definition in design.definitions()]
     else:

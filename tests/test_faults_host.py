@@ -101,3 +101,62 @@ def test_a_dashboard_address_is_checked_and_needs_the_local_cluster():
     study = Campaign("ship", vary={"plant.x0[1]": "0:1:2"})
     with pytest.raises(CampaignError, match="dashboard: only for the local cluster"):
         run_campaign(study, scheduler="tcp://127.0.0.1:1", dashboard="127.0.0.1:8787")
+
+
+# ----------------------------------------------------------------------------- 5, 6: config mistakes
+_DESIGN = """{head}
+[plant]
+A = {A}
+B = [[0], [1]]
+C = [[1, 0]]
+state_units = {units}
+[observer]
+t_settle = 0.15
+"""
+
+
+def _design(tmp_path, head='name = "inj"', A="[[0, 1], [-2, 3]]", units='["rad", "rad/s"]') -> Path:
+    path = tmp_path / "design.toml"
+    path.write_text(_DESIGN.format(head=head, A=A, units=units))
+    return path
+
+
+def _build_refused(tmp_path, config: Path) -> str:
+    """``obsfmu build --config``: exit 2, one line, nothing written (no --out, no temporary build folder)."""
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
+    done = subprocess.run(OBSFMU + ["build", "--config", str(config), "--out", str(tmp_path / "out")],
+                          capture_output=True, text=True, cwd=ROOT, env={**os.environ, "TMPDIR": str(scratch)},
+                          timeout=120)
+    assert done.returncode == 2, done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1 and done.stderr.startswith("obsfmu: error: "), done.stderr
+    assert not (tmp_path / "out").exists() and not list(scratch.iterdir())
+    return done.stderr
+
+
+@pytest.mark.parametrize("head, units, field", [
+    ('name = "inj"\ndescription = "a \\u0001 b"', '["rad", "rad/s"]', "description: control character '\\x01'"),
+    ('name = "inj"\ndescription = "two\\nlines"', '["rad", "rad/s"]', "description: control character '\\n'"),
+    ('name = "inj"', '["rad", "rad\\u007f/s"]', "plant.state_units[2]: control character '\\x7f'"),
+    ('name = "x\\n"', '["rad", "rad/s"]', "name: expected an identifier (letters, digits, _), got 'x\\n'"),
+], ids=["control-character", "newline", "unit", "name-newline"])
+def test_a_bad_text_in_a_design_is_one_line_and_builds_nothing(tmp_path, head, units, field):
+    assert field in _build_refused(tmp_path, _design(tmp_path, head=head, units=units))
+
+
+def test_a_name_with_a_trailing_newline_is_not_an_identifier():
+    from fmus.definition import valid_identifier
+    assert valid_identifier("x") and not valid_identifier("x\n") and not valid_identifier("x\ny")
+
+
+def test_a_plant_beyond_the_design_limit_is_refused_at_once(tmp_path):
+    """201 states: refused from the size of plant.A; 2000 x 2000 (12 MB): from the size of the file."""
+    from fmus.config import MAX_DIMENSION
+    n = MAX_DIMENSION + 1
+    over = tmp_path / "over"
+    over.mkdir()
+    matrix = "[" + ", ".join(["[" + ", ".join(["0"] * n) + "]"] * n) + "]"
+    message = _build_refused(over, _design(over, A=matrix))
+    assert f"plant.A: {n} states; a design has at most {MAX_DIMENSION} states, inputs and outputs" in message
+    huge = _design(tmp_path, A="[" + ", ".join(["[" + "0, " * 1999 + "0]"] * 2000) + "]")
+    assert "MiB; a design file has at most 4 MiB" in _build_refused(tmp_path, huge)
