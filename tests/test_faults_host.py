@@ -160,3 +160,83 @@ def test_a_plant_beyond_the_design_limit_is_refused_at_once(tmp_path):
     assert f"plant.A: {n} states; a design has at most {MAX_DIMENSION} states, inputs and outputs" in message
     huge = _design(tmp_path, A="[" + ", ".join(["[" + "0, " * 1999 + "0]"] * 2000) + "]")
     assert "MiB; a design file has at most 4 MiB" in _build_refused(tmp_path, huge)
+
+
+# ----------------------------------------------------------------------------- 2: SIGTERM and SIGHUP
+def _wait_for(process: subprocess.Popen, condition, what: str, timeout: float = 180.0) -> None:
+    deadline = time.monotonic() + timeout
+    while not condition():
+        if process.poll() is not None or time.monotonic() > deadline:
+            process.kill()
+            pytest.fail(f"no {what}: {process.communicate()}")
+        time.sleep(0.05)
+
+
+def _stopped(process: subprocess.Popen, signum: int) -> tuple[str, str]:
+    """Send ``signum``; the command ends by itself with 128 + signum and no traceback."""
+    process.send_signal(signum)
+    stdout, stderr = process.communicate(timeout=180)
+    assert process.returncode == 128 + signum, stderr
+    assert "Traceback" not in stdout + stderr and "Exception ignored" not in stderr, stderr
+    return stdout, stderr
+
+
+def _writing(directory: Path, name: str, size: int = 1):
+    """True once the hidden temporary CSV of ``name`` holds ``size`` bytes (the run is stepping)."""
+    return lambda: any(p.stat().st_size >= size for p in Path(directory).glob(f".{name}.csv.*.tmp"))
+
+
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGHUP], ids=["SIGTERM", "SIGHUP"])
+def test_a_run_stopped_by_sigterm_or_sighup_keeps_its_rows(build_dir, tmp_path, signum):
+    ensure_fmus(get("ship"), build_dir)
+    csv = tmp_path / "T.csv"
+    process = _start(["run", "ship", "--build-dir", build_dir, "--step", "1e-3", "--stop-time", "1e5", "--csv", csv])
+    _wait_for(process, _writing(tmp_path, "T", 100_000), "rows")
+    stdout, stderr = _stopped(process, signum)
+    assert f"the rows so far are in {tmp_path / 'T.partial.csv'}" in stdout
+    assert f"({signal.Signals(signum).name} again to kill at once)" in stderr
+    assert not csv.exists() and not _hidden(tmp_path)
+    rows = (tmp_path / "T.partial.csv").read_text().splitlines()
+    assert len(rows) > 1000 and all(row.count(",") == 7 for row in rows)   # every row complete
+
+
+@pytest.mark.parametrize("jobs", [1, 2])
+def test_report_stopped_by_sigterm_keeps_the_rows_of_the_running_scenarios(build_dir, tmp_path, jobs):
+    """``obsfmu report`` in an empty folder runs every scenario first (one by one, or in 2 workers)."""
+    from fmus.scenarios import SCENARIOS
+    for scenario in SCENARIOS.values():
+        ensure_fmus(scenario, build_dir)
+    out = tmp_path / "out"
+    process = _start(["report", "--out", out, "--build-dir", build_dir, "--jobs", jobs])
+    running = lambda: [p.name.split(".")[1] for p in out.glob(".*.csv.*.tmp") if p.stat().st_size > 50_000]  # noqa: E731
+    _wait_for(process, running, "rows")
+    stopped = running()
+    stdout, _ = _stopped(process, signal.SIGTERM)
+    for name in stopped:
+        assert f"{name}: interrupted at t = " in stdout and (out / f"{name}.partial.csv").exists()
+        assert not (out / f"{name}.json").exists()                 # nothing passes for a finished run
+    assert not _hidden(out) and not (out / "report.html").exists()
+
+
+def test_all_stopped_by_sighup_while_it_builds_leaves_nothing_half_written(build_dir, tmp_path):
+    """SIGHUP during ``obsfmu all``'s build of every FMU: unwinds like Ctrl-C, no partial FMU left."""
+    out, fresh = tmp_path / "out", tmp_path / "build"
+    process = _start(["all", "--out", out, "--build-dir", fresh, "--jobs", 1])
+    _wait_for(process, lambda: list(fresh.rglob("*.fmu")), "first FMU")
+    _, stderr = _stopped(process, signal.SIGHUP)
+    assert "obsfmu: interrupted (SIGHUP)" in stderr
+    assert not _hidden(fresh) and not _hidden(out) and not list(fresh.rglob("*.partial"))
+
+
+def test_a_sweep_stopped_by_sigterm_keeps_its_finished_samples(build_dir, tmp_path):
+    from fmus.campaign.store import load_rows
+    ensure_fmus(get("ltv-ls-bounded"), build_dir)
+    out = tmp_path / "sweep"
+    process = _start(["sweep", "ltv-ls-bounded", "--vary", "plant.k[1]=-4:-2:10", "--stop-time", "1.5", "--workers",
+                      1, "--out", out, "--build-dir", build_dir, "--no-plots"])
+    _wait_for(process, lambda: list((out / "samples").glob("part-*.parquet")), "stored samples")
+    _, stderr = _stopped(process, signal.SIGTERM)
+    assert "interrupted: every finished sample is in" in stderr and "(SIGTERM)" in stderr
+    rows = load_rows(out).to_pylist()
+    assert 0 < len(rows) < 10 and all(row["status"] == "ok" for row in rows)
+    assert not _hidden(out)

@@ -123,6 +123,7 @@ def _with_times(campaign, args):
 
 
 def cmd_sweep(args) -> int:
+    from ..cli import interrupted_status
     from .runner import run_campaign
     from .table import summary_text
 
@@ -136,10 +137,10 @@ def cmd_sweep(args) -> int:
         table = run_campaign(plan, workers=args.workers, scheduler=args.scheduler, out=out, progress=args.progress,
                              retry_failed=args.retry_failed, report_only=args.report_only,
                              plots=not args.no_plots, dashboard=args.dashboard)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:  # Ctrl-C, SIGTERM or SIGHUP (fmus.cli.Terminated)
         print(f"\ninterrupted: every finished sample is in {out / 'samples'}; rerun the same command to compute "
-              f"the rest", file=sys.stderr)
-        return 130
+              f"the rest ({exc or 'SIGINT'})", file=sys.stderr)
+        return interrupted_status(exc)
     print(summary_text(plan, table))
     written = [out / "samples", out / "samples.csv", out / "summary.txt"]
     if not args.no_plots and table.num_rows:
