@@ -253,18 +253,19 @@ class Outcome:
 
 
 def _run_scenario(name: str, build_dir: Path, stop: StopRequest, csv: Path | None, interval: float | None,
-                  **settings) -> Outcome:
-    """Run ``name`` streaming to ``csv``; the CSV is complete, or partial if the run stopped early."""
+                  option: str = "--csv", **settings) -> Outcome:
+    """Run ``name`` streaming to ``csv`` (named by ``option``); the CSV is complete, or partial if the run
+    stopped early."""
     from . import scenarios
-    recorder = StreamingRecorder(csv, interval)
+    recorder = StreamingRecorder(csv, interval, option=option)
     started = wallclock.perf_counter()
     try:
         result, summary = scenarios.run(name, build_dir, recorder=recorder, should_stop=stop,
                                         progress=sys.stderr.isatty(), **settings)
     except BaseException:
         if recorder.rows and csv is not None:
-            kept = recorder.close(complete=False)
-            print(f"obsfmu: the rows computed before the error are in {kept}", file=sys.stderr)
+            if kept := recorder.close(complete=False):   # None: the CSV's own error said where its rows are
+                print(f"obsfmu: the rows computed before the error are in {kept}", file=sys.stderr)
         else:
             recorder.discard()
         raise
@@ -364,7 +365,8 @@ def _run_one(out: Path, build_dir: Path, name: str, stop: StopRequest, settings:
     from .scenarios import get
     scenario = get(name)
     print(f"\n== {name}: {scenario.description}")
-    outcome = _run_scenario(name, build_dir, stop, out / f"{name}.csv", scenario.output_interval, **(settings or {}))
+    outcome = _run_scenario(name, build_dir, stop, out / f"{name}.csv", scenario.output_interval, "--out",
+                            **(settings or {}))
     if outcome.result.interrupted:
         return _interrupted(outcome, name, stop)
     if outcome.summary:

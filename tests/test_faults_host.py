@@ -240,3 +240,61 @@ def test_a_sweep_stopped_by_sigterm_keeps_its_finished_samples(build_dir, tmp_pa
     rows = load_rows(out).to_pylist()
     assert 0 < len(rows) < 10 and all(row["status"] == "ok" for row in rows)
     assert not _hidden(out)
+
+
+# ----------------------------------------------------------------------------- 3: a full disk
+def _file_size_limit(limit: int):
+    """For preexec_fn: files of this process at most ``limit`` bytes (a write beyond: EFBIG, as a full disk)."""
+    def apply():
+        import resource
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, resource.getrlimit(resource.RLIMIT_FSIZE)[1]))
+    return apply
+
+
+def test_a_csv_that_fills_the_disk_keeps_its_complete_rows_and_says_where(build_dir, tmp_path):
+    ensure_fmus(get("ship"), build_dir)
+    csv = tmp_path / "out.csv"
+    done = subprocess.run(OBSFMU + ["run", "ship", "--build-dir", str(build_dir), "--step", "1e-3", "--stop-time", "100",
+                                    "--csv", str(csv)], capture_output=True, text=True, cwd=ROOT, timeout=300,
+                          preexec_fn=_file_size_limit(1_000_000))
+    assert done.returncode == 2, done.stderr
+    (line,) = done.stderr.strip().splitlines()
+    partial = tmp_path / "out.partial.csv"
+    assert line.startswith(f"obsfmu: error: --csv {csv}: File too large; the ")
+    assert line.endswith(f" complete rows so far are in {partial}")
+    rows = int(line.split("; the ")[1].split()[0])
+    lines = partial.read_text().splitlines()
+    assert len(lines) == rows + 1 and rows > 1000 and all(row.count(",") == 7 for row in lines)
+    assert partial.stat().st_size <= 1_000_000 and not csv.exists() and not _hidden(tmp_path)
+
+
+def test_a_disk_full_from_the_start_writes_nothing_and_leaves_no_traceback(tmp_path, monkeypatch):
+    import errno
+
+    from fmus import output
+    unraisable = []
+    monkeypatch.setattr(sys, "unraisablehook", unraisable.append)
+
+    def full(descriptor, data):
+        raise OSError(errno.ENOSPC, "No space left on device")
+    monkeypatch.setattr(output.os, "write", full)
+    csv = tmp_path / "out.csv"
+    with pytest.raises(output.OutputError, match=rf"^--out {csv}: No space left on device; nothing written$"):
+        output.StreamingRecorder(csv, option="--out").begin(["a.x"])
+    import gc
+    gc.collect()
+    assert not unraisable and not list(tmp_path.iterdir())
+
+
+def test_a_file_replaced_on_a_full_disk_keeps_its_previous_version_and_is_named(tmp_path):
+    import errno
+
+    from fmus.output import OutputError, replacing
+    target = tmp_path / "report.html"
+    target.write_text("previous\n")
+    with pytest.raises(OutputError, match=rf"^{target}: cannot be written \(No space left on device\)$"):
+        with replacing(target) as temporary:
+            temporary.write_text("half")
+            raise OSError(errno.ENOSPC, "No space left on device")
+    assert target.read_text() == "previous\n" and not _hidden(tmp_path)
