@@ -10,6 +10,10 @@ script, no network), one section per scenario with
 * what obsfmu measures (the figure, the summary and a table of its metrics),
 * the agreement with the independent monolithic reference (``Summary.reference``),
 * the FMI facts (FMUs, ``fmpy.validation`` result, step, order, coupling, master).
+
+The results folder may come from elsewhere (or be tampered with): a record is used only if every
+field has its type (:func:`load_run`), every text of it is escaped, and a figure is embedded only if
+it is a file of the results folder itself (a plain name, no link leading out of it).
 """
 
 from __future__ import annotations
@@ -95,13 +99,38 @@ def save_run(out_dir: Path, scenario, result, summary, wall_time: float, build_d
     return path
 
 
+_NUMBER = (int, float)
+#: the fields of a record and their types: a type, or (list, item type) / (dict, key type, value type)
+_FMU = {"instance": str, "model": str, "file": str, "fmi_version": str, "variables": int,
+        "capabilities": (list, str), "validation": (list, str)}
+_SUMMARY = {"lines": (list, str), "metrics": (dict, str, _NUMBER), "reference": str}
+_RECORD = {"scenario": str, "description": str, "claim": str, "time_unit": str, "stop_time": _NUMBER,
+           "step": _NUMBER, "order": str, "coupling": str, "changed": (dict, str, _NUMBER), "steps": int,
+           "end_time": _NUMBER, "wall_time": _NUMBER, "figures": (list, str), "fmus": (list, _FMU)}
+
+
+def _fits(value, kind) -> bool:
+    """``value`` has the type ``kind`` describes (see ``_RECORD``)."""
+    if isinstance(kind, dict):
+        return isinstance(value, dict) and all(key in value and _fits(value[key], item) for key, item in kind.items())
+    if isinstance(kind, tuple) and kind[0] is list:
+        return isinstance(value, list) and all(_fits(item, kind[1]) for item in value)
+    if isinstance(kind, tuple) and kind[0] is dict:
+        return isinstance(value, dict) and all(_fits(k, kind[1]) and _fits(v, kind[2]) for k, v in value.items())
+    return isinstance(value, kind)
+
+
 def load_run(out_dir: Path, name: str) -> dict | None:
-    """The record of scenario ``name`` in ``out_dir`` (None if missing, unreadable or of another version)."""
+    """The record of scenario ``name`` in ``out_dir`` (None if missing, unreadable, of another version or
+    not of the record's shape: a field of another type)."""
     try:
         record = json.loads((Path(out_dir) / f"{name}.json").read_text())
     except (OSError, ValueError):
         return None
-    return record if isinstance(record, dict) and record.get("version") == RECORD_VERSION else None
+    usable = (_fits(record, _RECORD) and record.get("version") == RECORD_VERSION and record["scenario"] == name
+              and (record.get("summary") is None or _fits(record["summary"], _SUMMARY))
+              and isinstance(record.get("csv"), (str, type(None))))
+    return record if usable else None
 
 
 def has_run(out_dir: Path, name: str) -> bool:
@@ -130,10 +159,18 @@ def _e(text) -> str:
 _MEDIA = {".svg": "image/svg+xml", ".png": "image/png"}
 
 
+def _inside(out_dir: Path, name: str) -> bool:
+    """``name`` is a file of ``out_dir`` itself: a plain name, no link leading elsewhere."""
+    path = out_dir / name
+    return (Path(name).name == name and name not in (".", "..") and path.is_file()
+            and path.resolve().parent == out_dir.resolve())
+
+
 def _figure(out_dir: Path, record: dict) -> str:
-    """The scenario's figure as a data URI: the SVG (vector) if there is one, else the PNG."""
+    """The scenario's figure as a data URI: the SVG (vector) if there is one, else the PNG (only files of the
+    results folder itself)."""
     candidates = [name for suffix in _MEDIA for name in record["figures"]
-                  if name.endswith(suffix) and (out_dir / name).exists()]
+                  if name.endswith(suffix) and _inside(out_dir, name)]
     if not candidates:
         return '<p class="note">No figure.</p>'
     name = candidates[0]
@@ -156,7 +193,7 @@ def _fmi_table(record: dict) -> str:
         validation = "valid (no problem reported)" if not fmu["validation"] else "INVALID: " + "; ".join(
             fmu["validation"])
         rows.append(f"<tr><td>{_e(fmu['instance'])}</td><td>{_e(fmu['file'])}</td><td>FMI {_e(fmu['fmi_version'])} "
-                    f"co-simulation</td><td>{fmu['variables']}</td><td>{_e(', '.join(fmu['capabilities']))}</td>"
+                    f"co-simulation</td><td>{_e(fmu['variables'])}</td><td>{_e(', '.join(fmu['capabilities']))}</td>"
                     f"<td class=\"validation\">{_e(validation)}</td></tr>")
     return ("<table class=\"fmus\"><tr><th>instance</th><th>FMU</th><th>interface</th><th>variables</th>"
             "<th>capabilities</th><th>fmpy.validation</th></tr>\n" + "\n".join(rows) + "\n</table>")

@@ -298,3 +298,75 @@ def test_a_file_replaced_on_a_full_disk_keeps_its_previous_version_and_is_named(
             temporary.write_text("half")
             raise OSError(errno.ENOSPC, "No space left on device")
     assert target.read_text() == "previous\n" and not _hidden(tmp_path)
+
+
+# ----------------------------------------------------------------------------- 4: a tainted results folder
+TAINT = "<script>alert(1)</script>\"'><img src=x onerror=alert(2)>"
+
+
+def _tainted(value):
+    """Every text of a record prefixed by ``TAINT`` (the scenario's name kept: it names the file)."""
+    if isinstance(value, dict):
+        return {key: item if key == "scenario" else _tainted(item) for key, item in value.items()}
+    if isinstance(value, list):
+        return [_tainted(item) for item in value]
+    return TAINT + value if isinstance(value, str) else value
+
+
+@pytest.fixture(scope="module")
+def ship_results(build_dir, tmp_path_factory):
+    """A short ``ship`` run saved as ``obsfmu all`` saves it (figure, summary, record)."""
+    from fmus import report
+    from fmus.scenarios import run
+    out = tmp_path_factory.mktemp("results") / "results"
+    out.mkdir()
+    result, summary = run("ship", build_dir, stop_time=0.05, step=1e-4)
+    report.save_run(out, get("ship"), result, summary, 1.0, build_dir)
+    return out
+
+
+def test_a_tainted_record_is_written_escaped_and_embeds_no_file_from_outside(ship_results, tmp_path):
+    import json
+    import shutil
+
+    from fmus import report
+    out = tmp_path / "results"
+    shutil.copytree(ship_results, out)
+    secret = tmp_path / "secret.svg"
+    secret.write_text("<svg>SECRET-OUTSIDE</svg>")
+    (out / "link.svg").symlink_to(secret)
+    record = json.loads((out / "ship.json").read_text())
+    tainted = _tainted(record)
+    tainted["summary"]["metrics"] = {TAINT + key: value for key, value in record["summary"]["metrics"].items()}
+    tainted["changed"] = {TAINT: 1.5}
+    tainted["figures"] = ["../secret.svg", str(secret), "link.svg", *record["figures"]]
+    (out / "ship.json").write_text(json.dumps(tainted))
+    assert report.load_run(out, "ship") is not None                    # a record of the right shape
+    page = report.write_report(out, names=["ship"]).read_text()
+    assert "<script" not in page and "<img src=x" not in page and "onerror=alert(2)>" not in page
+    assert page.count("&lt;script&gt;alert(1)&lt;/script&gt;") > 10    # shown, as text
+    assert "SECRET-OUTSIDE" not in page and _b64("SECRET-OUTSIDE") not in page
+    assert 'data-file="ship.svg"' in page                             # the figure of the folder itself
+
+
+def _b64(text: str) -> str:
+    import base64
+    return base64.b64encode(f"<svg>{text}</svg>".encode()).decode()
+
+
+@pytest.mark.parametrize("field, value", [("fmus", [{"variables": TAINT}]), ("step", TAINT), ("figures", TAINT),
+                                          ("summary", {"lines": [], "metrics": {"x": TAINT}, "reference": ""})],
+                         ids=["fmus", "step", "figures", "summary"])
+def test_a_record_of_another_shape_is_not_used(ship_results, tmp_path, field, value):
+    import json
+    import shutil
+
+    from fmus import report
+    out = tmp_path / "results"
+    shutil.copytree(ship_results, out)
+    record = json.loads((out / "ship.json").read_text())
+    record[field] = value
+    (out / "ship.json").write_text(json.dumps(record))
+    assert report.load_run(out, "ship") is None and not report.has_run(out, "ship")
+    page = report.write_report(out, names=["ship"]).read_text()
+    assert "Missing scenarios (no results): ship" in page and "<script" not in page
