@@ -6,9 +6,11 @@ summary's numbers, the run's settings, the FMUs and their validation).  :func:`w
 turns the records into ``report.html``: self-contained (figures embedded as data URIs, no
 script, no network), one section per scenario with
 
-* what the paper claims (``Scenario.claim``: our words, the paper's numbers),
-* what obsfmu measures (the figure, the summary and a table of its metrics),
-* the agreement with the independent monolithic reference (``Summary.reference``),
+* what the paper claims (``Scenario.claim``: our words, the paper's numbers), each number of it
+  marked met / not met with the measured and the claimed value (:mod:`fmus.claims`),
+* what obsfmu measures (the figure, the summary and a table of its metrics), each number with the
+  interval of the run where it holds,
+* the agreement with the independent monolithic reference (``Summary.reference``) and its interval,
 * the FMI facts (FMUs, ``fmpy.validation`` result, step, order, coupling, master).
 
 The results folder may come from elsewhere (or be tampered with): a record is used only if every
@@ -27,6 +29,7 @@ import sys
 from datetime import datetime, timezone
 from pathlib import Path
 
+from .claims import CHECKS, holds_over, reference_interval, verdict
 from .metrics import NOT_REACHED
 from .output import replacing
 
@@ -149,6 +152,7 @@ td.number { text-align: right; font-family: monospace; }
 img.figure { max-width: 100%; border: 1px solid #ddd; }
 pre { background: #f6f6f6; padding: 0.6em; overflow-x: auto; font-size: 0.85em; }
 .note { color: #555; font-size: 0.9em; }
+td.met { color: #060; font-weight: bold; } td.not-met { color: #a00; font-weight: bold; }
 """
 
 
@@ -179,12 +183,28 @@ def _figure(out_dir: Path, record: dict) -> str:
             f'alt="figure of scenario {_e(record["scenario"])}">')
 
 
-def _metrics_table(name: str, metrics: dict) -> str:
+def _metrics_table(record: dict, metrics: dict) -> str:
+    name, end, unit = record["scenario"], record["end_time"], record["time_unit"]
     rows = "\n".join(
         f'<tr><td>{_e(key)}</td><td class="number" data-scenario="{_e(name)}" data-metric="{_e(key)}" '
-        f'data-value="{_e(repr(float(value)))}">{_e(format_metric(float(value)))}</td></tr>'
+        f'data-value="{_e(repr(float(value)))}">{_e(format_metric(float(value)))}</td>'
+        f'<td class="interval">{_e(holds_over(key, end, unit) or "not stated")}</td></tr>'
         for key, value in metrics.items())
-    return f'<table class="metrics"><tr><th>metric</th><th>value</th></tr>\n{rows}\n</table>'
+    return f'<table class="metrics"><tr><th>metric</th><th>value</th><th>holds</th></tr>\n{rows}\n</table>'
+
+
+def _claims_table(record: dict, metrics: dict) -> str:
+    """Every number of the scenario's claim: met / not met, the measured and the claimed value."""
+    checks = CHECKS.get(record["scenario"], ())
+    if not checks:
+        return '<p class="note">No number of this claim is checked.</p>'
+    rows = []
+    for check in checks:
+        mark, numbers = verdict(check, metrics, record["time_unit"])
+        rows.append(f'<tr><td>{_e(check.claim)}</td><td class="{mark.replace(" ", "-")}" data-check='
+                    f'"{_e(check.metric)}">{_e(mark)}</td><td>{_e(numbers)}</td></tr>')
+    return ('<table class="checks"><tr><th>claimed</th><th>verdict</th><th>measured / claimed</th></tr>\n'
+            + "\n".join(rows) + "\n</table>")
 
 
 def _fmi_table(record: dict) -> str:
@@ -228,12 +248,15 @@ def _section(out_dir: Path, record: dict) -> str:
 <p class="note">{_e(record['description'])}</p>
 <h3>What the paper claims</h3>
 <p class="claim">{_e(record['claim'] or 'No claim recorded for this scenario.')}</p>
+{_claims_table(record, summary['metrics'])}
 <h3>What obsfmu measures</h3>
+<p class="note">The figure shows the whole run, t = 0 .. {_e(f"{record['end_time']:g} {record['time_unit']}")}.</p>
 {_figure(out_dir, record)}
 <pre class="summary">{_e(chr(10).join(summary['lines']))}</pre>
-{_metrics_table(name, summary['metrics'])}
+{_metrics_table(record, summary['metrics'])}
 <h3>Agreement with the independent monolithic reference</h3>
 <p class="reference">{_e(summary['reference'] or 'No reference check recorded.')}</p>
+<p class="note">It holds {_e(reference_interval(name, record['end_time'], record['time_unit']))}.</p>
 <h3>FMI facts</h3>
 {_fmi_table(record)}
 {_run_facts(record)}

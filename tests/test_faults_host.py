@@ -370,3 +370,31 @@ def test_a_record_of_another_shape_is_not_used(ship_results, tmp_path, field, va
     assert report.load_run(out, "ship") is None and not report.has_run(out, "ship")
     page = report.write_report(out, names=["ship"]).read_text()
     assert "Missing scenarios (no results): ship" in page and "<script" not in page
+
+
+# ----------------------------------------------------------------------------- 9: the report's claims
+def test_every_claim_is_marked_met_or_not_met_with_its_numbers(ship_results, tmp_path):
+    import json
+    import shutil
+    from html import unescape
+
+    from fmus import report
+    from fmus.claims import CHECKS, reference_interval, verdict
+    assert verdict(CHECKS["uio-ftdrem"][1], {"t_omega_1e-4": 4.168}, "s") == \
+        ("not met", "measured 4.168 s, claimed: at most 3.4 s")                     # the audit's case
+    assert verdict(CHECKS["uio-ftdrem"][1], {"t_omega_1e-4": float("inf")}, "s")[0] == "not met"
+    assert verdict(CHECKS["uio-ftdrem"][1], {}, "s")[0] == "not measured"
+    assert reference_interval("uio-ftdrem", 20.0, "s") == "over the last 20 % of the run, t = 16 .. 20 s"
+    out = tmp_path / "results"
+    shutil.copytree(ship_results, out)
+    record = json.loads((out / "ship.json").read_text())
+    record["summary"]["metrics"]["settling_time_y"] = 0.45
+    (out / "ship.json").write_text(json.dumps(record))
+    page = unescape(report.write_report(out, names=["ship"]).read_text())
+    assert '<td class="not-met" data-check="settling_time_y">not met</td><td>measured 0.45 s, claimed: at most 0.3 s' \
+        in page
+    assert ('>not measured</td><td>max_deviation_from_paper_table is not measured in this run; claimed: at most '
+            '5e-05</td>') in page                                                   # 0.05 s: before the table ends
+    assert "It holds over the whole run, t = 0 .. 0.05 s." in page
+    assert "The figure shows the whole run, t = 0 .. 0.05 s." in page
+    assert "not stated" not in page and 'settling_time_y</td><td class="number"' in page
