@@ -135,7 +135,6 @@ class _CsvStream:
         self.lines: list[str] = [",".join(["time"] + columns) + "\n"]
         self.flush()
         self.format = ",".join(["%.17g"] * (len(columns) + 1)) + "\n"
-        self.lines: list[str] = []
         self.previous: tuple[int, float, np.ndarray] | None = None
         self.written = -1          # index of the last row written
         self.row = -1

@@ -220,12 +220,15 @@ def test_report_stopped_by_sigterm_keeps_the_rows_of_the_running_scenarios(build
 
 def test_all_stopped_by_sighup_while_it_builds_leaves_nothing_half_written(build_dir, tmp_path):
     """SIGHUP during ``obsfmu all``'s build of every FMU: unwinds like Ctrl-C, no partial FMU left."""
-    out, fresh = tmp_path / "out", tmp_path / "build"
-    process = _start(["all", "--out", out, "--build-dir", fresh, "--jobs", 1])
+    out, fresh, scratch = tmp_path / "out", tmp_path / "build", tmp_path / "tmp"
+    scratch.mkdir()
+    process = _start(["all", "--out", out, "--build-dir", fresh, "--jobs", 1],
+                     env={**os.environ, "TMPDIR": str(scratch)})
     _wait_for(process, lambda: list(fresh.rglob("*.fmu")), "first FMU")
     _, stderr = _stopped(process, signal.SIGHUP)
     assert "obsfmu: interrupted (SIGHUP)" in stderr
     assert not _hidden(fresh) and not _hidden(out) and not list(fresh.rglob("*.partial"))
+    assert not list(scratch.glob("obsfmu_build_*"))                  # the temporary build folder is gone
 
 
 def test_a_sweep_stopped_by_sigterm_keeps_its_finished_samples(build_dir, tmp_path):
