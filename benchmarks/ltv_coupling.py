@@ -3,7 +3,7 @@
 The table in ``fmus/scenarios/ltv_ls/__init__.py``: for the bounded (20 s) and the paper (15 s)
 case, Gauss-Seidel with interpolated inputs, the largest ``|theta_hat - theta_ref|`` on the
 stored reference's 0.05 s grid for a communication step ``h``, the degree of the input
-polynomials (:class:`observers.ltv_stepping.PolynomialInputs`), the longest RK4 sub-step and the
+polynomials (:class:`observers.ltv.stepping.PolynomialInputs`), the longest RK4 sub-step and the
 start-up ramp of the master, with the CPU time of the blocks themselves (the direct loop of
 :mod:`benchmarks.direct_loop`, which computes exactly what the FMUs compute).
 

@@ -26,7 +26,7 @@ from fmus.scenarios import ensure_fmus, get, run
 from observers.block import Segment
 from observers.estimation import DelayExtension, DiscreteDREM
 from observers.gpebo import GpeboObserver
-from plants.paper000 import EXAMPLE, GeneratorPlant, example_model
+from plants.gpebo import EXAMPLE, GeneratorPlant, example_model
 
 
 def signals(samples: int):

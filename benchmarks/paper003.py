@@ -24,7 +24,7 @@ from fmus.scenarios import ensure_fmus, get, run
 from fmus.scenarios.uio_ftdrem import A, B, B_BAR, C, DISTURBANCE, H, R, X0, XI0, XI0_FREE, XI0_KNOWN, Z0, gain
 from observers.block import Segment
 from observers.uio import UIOFiniteTimeObserver
-from plants.paper003 import DisturbedLTVPlant
+from plants.uio import DisturbedLTVPlant
 
 STEP, STOP, SPLIT = 1e-3, 20.0, 7.6
 

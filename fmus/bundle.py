@@ -12,7 +12,7 @@ so FMUs built from different code never share a module, and an FMU never runs th
 ``fmus`` (or a checkout's).  FMUs built from the same code share the package.
 
 At run time the two places that import project modules by name -- :func:`fmus.callables.resolve`
-(``"plants.paper001:f_sin"``) and :func:`fmus.kinds.create_block` (``kind_module``) -- map the
+(``"plants.ltv:f_sin"``) and :func:`fmus.kinds.create_block` (``kind_module``) -- map the
 name onto the FMU's own package with :func:`local_name`.  Unrelocated (a checkout or an installed
 obsfmu) :data:`PACKAGE` is ``""`` and names stay as they are.
 """
@@ -37,7 +37,7 @@ class RelocationError(ValueError):
 
 
 def local_name(module: str) -> str:
-    """The name under which ``module`` (e.g. ``"plants.paper001"``) is imported here."""
+    """The name under which ``module`` (e.g. ``"plants.ltv"``) is imported here."""
     if PACKAGE and module.split(".")[0] in getattr(sys.modules.get(PACKAGE), NAMES, ()):
         return f"{PACKAGE}.{module}"
     return module

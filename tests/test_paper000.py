@@ -10,7 +10,7 @@ import pytest
 from observers.block import Segment
 from observers.checks import ParameterError, SignalError
 from observers.gpebo import ExampleRegression, GeneratorModel, GpeboFilters, GpeboObserver, generator_matrix
-from plants.paper000 import EXAMPLE, GeneratorPlant, example_model
+from plants.gpebo import EXAMPLE, GeneratorPlant, example_model
 from reference import paper000 as ref
 
 SINES = ref.INPUTS["sines"]

@@ -3,7 +3,7 @@
 Three FMUs: the signal source (``u`` sampled at the communication points,
 ``t = k Ts``), the discrete plant of the paper's example (``n = 2``,
 ``x1(k+1) = x2(k) + theta1(k) sin x1(k)``, ``x2(k+1) = beta(k) u(k)``,
-``gamma_beta = -1``, ``gamma_theta = 1``; bounded, see :mod:`plants.paper000`)
+``gamma_beta = -1``, ``gamma_theta = 1``; bounded, see :mod:`plants.gpebo`)
 and the observer (:mod:`observers.gpebo`).  ``Ts = 1`` s, 40 samples.
 
 The paper's three inputs (the default is the first)::

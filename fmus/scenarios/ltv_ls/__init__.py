@@ -16,10 +16,10 @@ Default step and coupling, measured through the FMUs against the monolithic Rada
 ``|theta_hat - theta_ref|`` on the reference's 0.05 s grid (``benchmarks/ltv_coupling.py``, where
 the CPU of the blocks is measured too).  "linear" coupling with Gauss-Seidel (source, plant,
 observer) interpolates ``y`` and ``u`` across the step; the blocks follow the polynomial of degree
-``input_degree`` through the last communication points (``observers.ltv_stepping.PolynomialInputs``),
+``input_degree`` through the last communication points (``observers.ltv.stepping.PolynomialInputs``),
 RK4 sub-steps of at most ``max_substep``; ``ramp`` splits the master's first step (no history yet);
 ``f_correction`` (observer) resolves the fast part of ``y`` that ``m sin(y)`` drives
-(``observers.ltv_stepping.resolved_output``).
+(``observers.ltv.stepping.resolved_output``).
 
 ========  =======  ======  ===========  ====  ============  ==========================
 case      step     degree  max_substep  ramp  f_correction  max ``|theta_hat - ref|``
@@ -86,10 +86,10 @@ def definitions():
     return [
         source_definition("ltv_ls_source", sines=1, amplitude=[1.0], omega=[1.0],
                           description="u(t) = sin t (paper 001)"),
-        ltv_plant_definition("ltv_ls_plant", "plants.paper001:A_paper", C, "plants.paper001:f_sin", **PAPER,
+        ltv_plant_definition("ltv_ls_plant", "plants.ltv:A_paper", C, "plants.ltv:f_sin", **PAPER,
                              description="paper 001 plant x' = A(t) x + k C^T x + b u + m sin(y), y = x1 (+ noise)"),
-        ltv_observer_definition("ltv_ls_observer", "plants.paper001:A_paper", C, "plants.paper001:L_paper",
-                                "plants.paper001:f_sin"),
+        ltv_observer_definition("ltv_ls_observer", "plants.ltv:A_paper", C, "plants.ltv:L_paper",
+                                "plants.ltv:f_sin"),
     ]
 
 
