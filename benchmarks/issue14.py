@@ -294,8 +294,8 @@ def section_per_step(args, build):
 # ---------------------------------------------------------------------------- 2. numerics
 LSODA = """
 import numpy as np
-from tests.reference import paper001 as ref
-from fmus.scenarios.ltv_ls import load_reference
+from fmus.scenarios.ltv_common import reference as ref
+from fmus.scenarios.ltv_common import load_reference
 r = load_reference("bounded")
 out = ref.simulate(r["t"], **ref.BOUNDED, form="information", method="LSODA", rtol={rtol}, atol={rtol})
 print("error", np.abs(out["theta_hat"] - r["theta_hat"]).max())

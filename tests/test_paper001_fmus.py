@@ -1,7 +1,7 @@
 """Paper 001 (issue 5) through FMUs: scenarios ``ltv-ls`` and ``ltv-ls-bounded``.
 
 Source, plant and observer FMUs co-simulated by the project's master, compared with the
-independent monolithic solution (scipy) of plant + filters + estimator (``tests/reference/paper001.py``,
+independent monolithic solution (scipy) of plant + filters + estimator (``fmus/scenarios/ltv_common/reference.py``,
 which imports nothing from the project).  Numbers in comments are measured values.
 """
 
@@ -17,9 +17,9 @@ from fmus.master import SimulationError
 from fmus.metrics import time_to_stay_below
 from fmus.result import Result
 from fmus.scenarios import ensure_fmus, get, run
-from fmus.scenarios.ltv_ls import errors, load_reference
+from fmus.scenarios.ltv_common import errors, load_reference
 from observers.checks import ParameterError
-from reference import paper001 as ref
+from fmus.scenarios.ltv_common import reference as ref
 
 TOLERANCE = 1e-3
 

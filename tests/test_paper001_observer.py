@@ -1,6 +1,6 @@
 """Paper 001 without FMI: the LTV plant and the adaptive observer blocks, and their error handling.
 
-The reference (``tests/reference/paper001.py``) imports nothing from the project: plant and
+The reference (``fmus/scenarios/ltv_common/reference.py``) imports nothing from the project: plant and
 plant + filters + estimator are each ONE ODE solved with scipy (the plant: Radau at rtol = atol = 1e-10;
 plant + filters + estimator: DOP853 at rtol = atol = 1e-12).
 """
@@ -16,7 +16,7 @@ from observers.ltv import LTVAdaptiveObserver
 from observers.ltv.stepping import SUBSTEP_POINTS, IntegralSamples, PolynomialInputs, resolved_output
 from plants.ltv import A_paper, L_paper, OutputNonlinearLTVPlant, f_sin
 from plants.signals import SampledNoise
-from reference import paper001 as ref
+from fmus.scenarios.ltv_common import reference as ref
 
 C = [1.0, 0.0]
 

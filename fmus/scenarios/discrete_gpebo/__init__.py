@@ -57,8 +57,8 @@ from ...metrics import NOT_REACHED, time_to_stay_below
 from ...plotting import Curve, Panel, figure
 from ...result import Result
 from .. import Scenario, Summary
+from .measures import MEASURE, TOLERANCE
 
-TOLERANCE = 1e-6  #: acceptance: gamma and x to 1e-6
 
 
 def definitions():
@@ -188,4 +188,5 @@ SCENARIO = Scenario(
     plot=plot,
     not_adaptive="its plant and observer are discrete: they take steps of exactly one sample period Ts",
     claim=CLAIM,
+    measure=MEASURE,
 )

@@ -38,6 +38,7 @@ from ...metrics import format_time, settling_time, time_to_stay_below
 from ...plotting import Curve, Panel, figure
 from ...result import Result
 from .. import Scenario, Summary, changed_parameters
+from .measures import MEASURE
 
 HERE = Path(__file__).parent
 CONFIG = HERE / "ship.toml"
@@ -219,5 +220,6 @@ SCENARIO = Scenario(
     summarize=summarize,
     plot=plot,
     claim=CLAIM,
+    measure=MEASURE,
     output_interval=1e-3,
 )

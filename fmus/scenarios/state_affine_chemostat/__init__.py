@@ -17,7 +17,7 @@ Other plants::
     obsfmu run state-affine-chemostat --set plant.S_in=15 --set plant.x0[1]=1 --set plant.x0[2]=5
 
 Default step and coupling -- measured against the independent monolithic solution
-(``tests/reference/paper004.py``, Radau, rtol 1e-10): max deviation over ``t = 0:0.01:30`` h,
+(``fmus/scenarios/state_affine_common/reference.py``, Radau, rtol 1e-10): max deviation over ``t = 0:0.01:30`` h,
 final errors (t = 30 h) and the times after which the errors stay below 1e-4 (the reference
 itself: 1.63 h and 3.92 h):
 
@@ -113,4 +113,5 @@ SCENARIO = Scenario(
     plot=plot,
     not_adaptive=common.NOT_ADAPTIVE,
     claim=CLAIM,
+    measure=common.MEASURE,
 )

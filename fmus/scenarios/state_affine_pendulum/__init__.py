@@ -14,7 +14,7 @@ Other plants::
     obsfmu run state-affine-pendulum --set plant.a=4 --set plant.b=0.2 --set plant.x0[1]=-1 --set plant.x0[2]=0.5
 
 Default step and coupling -- measured against the independent monolithic solution
-(``tests/reference/paper004.py``: the same equations as one ODE, Radau, rtol 1e-10): max
+(``fmus/scenarios/state_affine_common/reference.py``: the same equations as one ODE, Radau, rtol 1e-10): max
 deviation over the reference grid ``t = 0:0.01:20``, final errors against the true plant
 (t = 20 s) and the times after which the errors stay below 1e-4 (the reference itself: 1.35 s
 and 2.85 s):
@@ -123,4 +123,5 @@ SCENARIO = Scenario(
     plot=plot,
     not_adaptive=common.NOT_ADAPTIVE,
     claim=CLAIM,
+    measure=common.MEASURE,
 )
