@@ -1,7 +1,7 @@
 """Error of a scenario's run against its independent reference, at the reference's points.
 
 One function per continuous scenario (``ERRORS[name](result) -> float``), shared by
-``benchmarks/issue14.py`` and ``benchmarks/master_study.py``.  Results whose communication points
+``benchmarks/cosimulation_costs.py`` and ``benchmarks/master_study.py``.  Results whose communication points
 miss the reference's grid (the adaptive master's) are read there through a cubic spline of the
 run (:meth:`fmus.result.Result.at`).
 """

@@ -89,7 +89,7 @@ def simulate(times, k, b, m, x0, gamma=1000.0, beta=1.0, f0=0.1, M=1e12, form="F
              rtol=RTOL, atol=ATOL, u=u_of_t, noise=None, method=METHOD):
     """Solve the monolithic ODE on ``[0, times[-1]]``; values at ``times``.
 
-    ``method`` is the ``solve_ivp`` method (``benchmarks/issue14.py`` times ``LSODA``).
+    ``method`` is the ``solve_ivp`` method (``benchmarks/cosimulation_costs.py`` times ``LSODA``).
 
     ``noise`` (optional, ``t -> v``) is added to the output the observer measures,
     ``y_m = C^T x + v``; the plant itself uses the true ``y``.

@@ -22,7 +22,7 @@ from .measures import MEASURE, TOLERANCE
 __all__ = ["TOLERANCE", "MEASURE", "NOT_ADAPTIVE", "load_reference", "errors", "summarize", "plot"]
 
 MU = 0.98          #: the observers' default switching level (the summary reports nu < MU)
-#: why the adaptive master is refused (measured with benchmarks/issue14.py)
+#: why the adaptive master is refused (measured with benchmarks/cosimulation_costs.py)
 NOT_ADAPTIVE = ("step doubling measures the wrong error here: the finite-time DREM laws hold their regressors "
                 "over each step (first order in the step) until they switch (nu < mu) and are exact from then "
                 "on, so the error of the transient drives the step down while the final accuracy is set by "

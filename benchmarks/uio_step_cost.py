@@ -7,7 +7,7 @@ adapt (0 .. 7.5 s: four FT-DREM updates per step) and after identification (7.6 
 LTI filters and the stage-4 observer only).  Also the wall time of ``obsfmu run uio-ftdrem``
 (plant + observer FMUs and the master).  Best of several repeats, measured in one run.
 
-    .venv/bin/python benchmarks/paper003.py [--repeats 3]
+    .venv/bin/python benchmarks/uio_step_cost.py [--repeats 3]
 """
 
 from __future__ import annotations

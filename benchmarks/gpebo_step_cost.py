@@ -9,7 +9,7 @@
 
 Times are the best of several repeats (microseconds); ratios are taken within this run.
 
-    .venv/bin/python benchmarks/paper000.py [--samples 2000] [--repeat 5]
+    .venv/bin/python benchmarks/gpebo_step_cost.py [--samples 2000] [--repeat 5]
 """
 
 from __future__ import annotations

@@ -1,4 +1,6 @@
-"""Every target of issue 14, measured in one run, side by side with the issue's "today" figure.
+"""What a co-simulation costs, measured in one run: the FMU path against the direct loop of the same
+blocks, a whole run against a monolithic solver, start-up, builds and the main job, the adaptive master
+against a fixed step -- the targets of issue 14, side by side with the issue's "today" figure.
 
 CPU time (``time.process_time`` in this process, ``RUSAGE_CHILDREN`` for whole commands), the
 minimum of ``--repeats`` interleaved repeats (every case of a section is run once per round).
@@ -25,7 +27,7 @@ minimum of ``--repeats`` interleaved repeats (every case of a section is run onc
 5. Adaptive master at tol 1e-4 and 1e-6 vs the cheapest fixed step of the scenario's default
    coupling that reaches the same error.
 
-    .venv/bin/python benchmarks/issue14.py [--quick] [--repeats 5] [--main] [--only SECTION ...]
+    .venv/bin/python benchmarks/cosimulation_costs.py [--quick] [--repeats 5] [--main] [--only SECTION ...]
 """
 
 from __future__ import annotations

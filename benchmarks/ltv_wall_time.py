@@ -14,7 +14,7 @@ accurate for the bounded case; the paper case's fast output ``y`` needs the obse
 ``f_correction`` at 1e-3 s (its default) and 1e-4 s without it (see docs/paper001.md).  FMUs are
 built once (not timed).
 
-    .venv/bin/python benchmarks/paper001.py [--cases bounded paper] [--paper-steps 1e-3 1e-4]
+    .venv/bin/python benchmarks/ltv_wall_time.py [--cases bounded paper] [--paper-steps 1e-3 1e-4]
 """
 
 from __future__ import annotations
