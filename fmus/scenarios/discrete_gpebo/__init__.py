@@ -21,27 +21,11 @@ step, with a stop time that is a whole number of samples, e.g. ``Ts = pi/2``::
     obsfmu run discrete-gpebo --step 1.5707963267948966 --stop-time 62.83185307179586 \\
         --set plant.Ts=1.5707963267948966 --set observer.Ts=1.5707963267948966
 
-Step and coupling.  The plant and the observer are discrete: the step must be
-``Ts`` (other steps are refused) and every input must be its value at the
-step start.  The summary checks the recorded plant trajectory against the
-model equations with ``u(k)`` = the recorded source value at ``t_k``
-(``plant residual``) -- a monolithic discrete loop of the same equations
-reduced to one step each.  Measured over the default 40 samples:
-
-=========================  ==============  ===============  ==============
-order, coupling            plant residual  final |x-x_hat|  excited at end
-=========================  ==============  ===============  ==============
-jacobi, linear (default)   0               2.9e-12          yes
-jacobi, hold               0               2.9e-12          yes
-gauss-seidel, linear       0               2.9e-12          yes
-gauss-seidel, hold         2.6             7.3e+01          no
-=========================  ==============  ===============  ==============
-
-Under Gauss-Seidel the source steps first; with linear coupling the master
-marks the inputs "interpolate" and the blocks take the segment's start value
-``u(t_k)``; with ``hold`` they get the value already advanced to ``t_(k+1)``.
-Jacobi is the natural order for sampled systems: every block reads the
-values at ``t_k`` whatever the coupling.
+Step and coupling.  The plant and the observer are discrete: the step must be ``Ts`` (other steps
+are refused) and every input must be its value at the step start, so the default order is Jacobi
+(every block reads the values at ``t_k`` whatever the coupling).  The summary checks the recorded
+plant trajectory against the model equations (``plant residual``); the orders and couplings
+measured against it: ``docs/paper000.md``, section 4.
 """
 
 from __future__ import annotations
