@@ -1,6 +1,6 @@
 """Paper 001's co-simulation error against the monolithic reference vs the settings inside a step.
 
-The table in ``fmus/scenarios/ltv_ls/__init__.py``: for the bounded (20 s) and the paper (15 s)
+The table of ``docs/paper001.md``, section 3: for the bounded (20 s) and the paper (15 s)
 case, Gauss-Seidel with interpolated inputs, the largest ``|theta_hat - theta_ref|`` on the
 stored reference's 0.05 s grid for a communication step ``h``, the degree of the input
 polynomials (:class:`observers.ltv.stepping.PolynomialInputs`), the longest RK4 sub-step and the
