@@ -145,7 +145,7 @@ def test_a_bad_text_in_a_design_is_one_line_and_builds_nothing(tmp_path, head, u
 
 
 def test_a_name_with_a_trailing_newline_is_not_an_identifier():
-    from fmus.definition import valid_identifier
+    from fmus.runtime.definition import valid_identifier
     assert valid_identifier("x") and not valid_identifier("x\n") and not valid_identifier("x\ny")
 
 

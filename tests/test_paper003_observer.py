@@ -1,6 +1,6 @@
 """Paper 003 without FMI: design (3)-(4), the regressions against the true plant, stages, bad input.
 
-The plant here is :class:`plants.paper003.DisturbedLTVPlant`; ``y`` is handed to the observer
+The plant here is :class:`plants.uio.DisturbedLTVPlant`; ``y`` is handed to the observer
 as a straight line between the plant's samples (what the FMU master's linear coupling does).
 Numbers quoted in comments were measured with this code (h = 1e-3 s).
 """
@@ -17,7 +17,7 @@ from observers.uio.harmonic import undo_filter
 from observers.uio.regressions import RegressionSignals, frequencies_from_annihilator
 from observers.uio.settling import SETTLED, TIMED_OUT, SettlingDetector
 from observers.uio.signals import SignalModel
-from plants.paper003 import DisturbedLTVPlant
+from plants.uio import DisturbedLTVPlant
 
 H_STEP = 1e-3
 A = np.array([[0.0, 1.0], [-2.0, 0.0]])
