@@ -1,7 +1,7 @@
 """Error of a scenario's run against its independent reference, at the reference's points.
 
 One function per continuous scenario (``ERRORS[name](result) -> float``), shared by
-``benchmarks/issue14.py`` and ``benchmarks/master_study.py``.  Results whose communication points
+``benchmarks/cosimulation_costs.py`` and ``benchmarks/master_study.py``.  Results whose communication points
 miss the reference's grid (the adaptive master's) are read there through a cubic spline of the
 run (:meth:`fmus.result.Result.at`).
 """
@@ -29,15 +29,15 @@ def _ltv_reference(case):
     """``(t, theta_hat)`` of the reference of ``case`` on its stored grid.
 
     The stored paper-case file (Radau, rtol = atol = 1e-10) is 2.1e-6 off (t = 14.85 s) the DOP853
-    solution at rtol = atol = 1e-12 of ``tests/reference/paper001.py``, which the FMUs converge to
+    solution at rtol = atol = 1e-12 of ``fmus/scenarios/ltv_common/reference.py``, which the FMUs converge to
     (fixed step 5e-5 s: 2.0e-6, 2.5e-5 s: 1.4e-7; against the file both ~2e-6): the paper case is
     measured against that solution (~20 s CPU, once per process).
     """
-    from fmus.scenarios.ltv_ls import load_reference
+    from fmus.scenarios.ltv_common import load_reference
     reference = load_reference(case)
     if case != "paper":
         return reference["t"], reference["theta_hat"]
-    from tests.reference import paper001
+    from fmus.scenarios.ltv_common import reference as paper001
     return reference["t"], paper001.simulate(reference["t"], **paper001.PAPER)["theta_hat"]
 
 

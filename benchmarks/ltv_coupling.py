@@ -1,9 +1,9 @@
 """Paper 001's co-simulation error against the monolithic reference vs the settings inside a step.
 
-The table in ``fmus/scenarios/ltv_ls/__init__.py``: for the bounded (20 s) and the paper (15 s)
+The table of ``docs/paper001.md``, section 3: for the bounded (20 s) and the paper (15 s)
 case, Gauss-Seidel with interpolated inputs, the largest ``|theta_hat - theta_ref|`` on the
 stored reference's 0.05 s grid for a communication step ``h``, the degree of the input
-polynomials (:class:`observers.ltv_stepping.PolynomialInputs`), the longest RK4 sub-step and the
+polynomials (:class:`observers.ltv.stepping.PolynomialInputs`), the longest RK4 sub-step and the
 start-up ramp of the master, with the CPU time of the blocks themselves (the direct loop of
 :mod:`benchmarks.direct_loop`, which computes exactly what the FMUs compute).
 
@@ -23,7 +23,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from benchmarks.direct_loop import DirectLoop                       # noqa: E402
 from fmus.scenarios import get                                      # noqa: E402
-from fmus.scenarios.ltv_ls import load_reference                    # noqa: E402
+from fmus.scenarios.ltv_common import load_reference                # noqa: E402
 
 BOUNDED = [  # step, input degree, max_substep, ramp, the observer's f_correction
     (1e-3, 2, 1e-3, 0, 0), (1e-2, 2, 5e-3, 6, 0), (1e-2, 3, 5e-3, 6, 0), (1e-2, 4, 5e-3, 0, 0),

@@ -3,9 +3,10 @@
 Every user mistake ends in one line ``obsfmu: error: <argument or field>: <what is wrong>`` and exit
 code 2 -- bad option values are refused by the argument parser, output paths are checked before
 anything is simulated, and the remaining checks raise :class:`ParameterError`,
-:class:`SimulationError` or :class:`OutputError`, which :func:`main` prints.  Ctrl-C during a run
-stops it after the current communication step (exit 130, the rows so far kept in a file marked
-partial).
+:class:`SimulationError` or :class:`OutputError`, which :func:`main` prints.  Ctrl-C (SIGINT),
+SIGTERM or SIGHUP during a run stops it after the current communication step (exit 128 + the
+signal: 130, 143, 129; the rows so far kept in a file marked partial); elsewhere they unwind the
+command as Ctrl-C does (temporary files removed, same exit codes).
 
 Subcommands are registered with :func:`register`; a module that adds one (e.g. ``obsfmu sweep``)
 calls ``register(...)`` at import and is imported once at the end of this file.
@@ -41,6 +42,8 @@ DEFAULT_BUILD = Path("build")
 DEFAULT_RESULTS = Path("results")
 EXIT_USAGE = 2
 EXIT_INTERRUPTED = 130  #: 128 + SIGINT, what a shell reports for a Ctrl-C
+#: the signals that stop a command cleanly: Ctrl-C, what timeout / CI / batch schedulers send, a closed terminal
+STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
 
 
 # ----------------------------------------------------------------------------- registry
@@ -136,41 +139,77 @@ def _scenario_list_help() -> str:
               "one is given: 90min, 2h, 7.2s")
 
 
-# ----------------------------------------------------------------------------- Ctrl-C
+# ----------------------------------------------------------------------------- Ctrl-C, SIGTERM, SIGHUP
+class Terminated(KeyboardInterrupt):
+    """SIGTERM or SIGHUP outside a run: unwinds the command as Ctrl-C's KeyboardInterrupt does."""
+
+    def __init__(self, signum: int):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+def interrupted_status(exc: KeyboardInterrupt) -> int:
+    """The exit code of a command stopped by ``exc``: 128 + its signal (130 for Ctrl-C)."""
+    return 128 + getattr(exc, "signum", signal.SIGINT)
+
+
+def _handlers(handler, signals=STOP_SIGNALS) -> dict:
+    """Install ``handler`` for ``signals`` (main thread only), except SIGTERM / SIGHUP when ignored
+    (``nohup``); returns the previous handlers for :func:`_restore`."""
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+    return {number: signal.signal(number, handler) for number in signals
+            if number == signal.SIGINT or signal.getsignal(number) is not signal.SIG_IGN}
+
+
+def _restore(previous: dict) -> None:
+    for number, handler in previous.items():
+        signal.signal(number, handler)
+
+
+def _raise_terminated(signum, frame):
+    raise Terminated(signum)
+
+
 class StopRequest:
-    """While active, SIGINT only sets a flag (the master asks it after every communication point).
+    """While active, SIGINT, SIGTERM and SIGHUP only set a flag (the master asks it after every
+    communication point); :attr:`exit_code` is then 128 + the signal.
 
     The FMUs run Python code in this interpreter, so no exception may be raised inside them.  A
-    second Ctrl-C kills the process at once (it leaves only hidden temporary files behind).
+    second signal kills the process at once (it leaves only hidden temporary files behind).
     """
 
     def __init__(self, quiet: bool = False, shared=None):
         self.requested = False
+        self.signum = signal.SIGINT  # the signal that asked (SIGINT also when another process asked)
         self.quiet = quiet      # no message (a worker process of 'obsfmu all --jobs N')
         self.shared = shared    # a shared byte (multiprocessing RawValue) another process may set
-        self._previous = None
+        self._previous: dict = {}
 
     def __call__(self) -> bool:
         return self.requested or bool(self.shared is not None and self.shared.value)
 
+    @property
+    def exit_code(self) -> int:
+        return 128 + self.signum
+
     def _handle(self, signum, frame) -> None:
         if self.requested:
-            signal.signal(signal.SIGINT, signal.SIG_DFL)
-            os.kill(os.getpid(), signal.SIGINT)
+            signal.signal(signum, signal.SIG_DFL)
+            os.kill(os.getpid(), signum)
             return
-        self.requested = True
+        self.requested, self.signum = True, signum
         if not self.quiet:
-            print("\nobsfmu: stopping after the current step (Ctrl-C again to kill at once)", file=sys.stderr,
+            again = "Ctrl-C" if signum == signal.SIGINT else signal.Signals(signum).name
+            print(f"\nobsfmu: stopping after the current step ({again} again to kill at once)", file=sys.stderr,
                   flush=True)
 
     def __enter__(self) -> "StopRequest":
-        if threading.current_thread() is threading.main_thread():
-            self._previous = signal.signal(signal.SIGINT, self._handle)
+        self._previous = _handlers(self._handle)
         return self
 
     def __exit__(self, *exc) -> None:
-        if self._previous is not None:
-            signal.signal(signal.SIGINT, self._previous)
+        _restore(self._previous)
 
 
 # ----------------------------------------------------------------------------- shared steps
@@ -214,18 +253,19 @@ class Outcome:
 
 
 def _run_scenario(name: str, build_dir: Path, stop: StopRequest, csv: Path | None, interval: float | None,
-                  **settings) -> Outcome:
-    """Run ``name`` streaming to ``csv``; the CSV is complete, or partial if the run stopped early."""
+                  option: str = "--csv", **settings) -> Outcome:
+    """Run ``name`` streaming to ``csv`` (named by ``option``); the CSV is complete, or partial if the run
+    stopped early."""
     from . import scenarios
-    recorder = StreamingRecorder(csv, interval)
+    recorder = StreamingRecorder(csv, interval, option=option)
     started = wallclock.perf_counter()
     try:
         result, summary = scenarios.run(name, build_dir, recorder=recorder, should_stop=stop,
                                         progress=sys.stderr.isatty(), **settings)
     except BaseException:
         if recorder.rows and csv is not None:
-            kept = recorder.close(complete=False)
-            print(f"obsfmu: the rows computed before the error are in {kept}", file=sys.stderr)
+            if kept := recorder.close(complete=False):   # None: the CSV's own error said where its rows are
+                print(f"obsfmu: the rows computed before the error are in {kept}", file=sys.stderr)
         else:
             recorder.discard()
         raise
@@ -233,11 +273,11 @@ def _run_scenario(name: str, build_dir: Path, stop: StopRequest, csv: Path | Non
     return Outcome(result, summary, written, wallclock.perf_counter() - started)
 
 
-def _interrupted(outcome: Outcome, name: str) -> int:
+def _interrupted(outcome: Outcome, name: str, stop: StopRequest) -> int:
     result = outcome.result
     kept = f"; the rows so far are in {outcome.csv}" if outcome.csv else " (nothing written)"
     print(f"{name}: interrupted at t = {result.time[-1]:g} {result.time_unit}{kept}")
-    return EXIT_INTERRUPTED
+    return stop.exit_code
 
 
 # ----------------------------------------------------------------------------- subcommands
@@ -246,10 +286,12 @@ def cmd_build(args) -> int:
 
     from .fmi3 import build_folder
 
-    out = check_directory("--out", args.out)
-    if args.config:
+    design = None
+    if args.config:  # checked whole before anything is written
         from .config import design_from_config, load_config
         design = design_from_config(load_config(args.config))
+    out = check_directory("--out", args.out)
+    if design:
         paths = [build_fmu(definition, build_folder(out, args.fmi_version), fmi_version=args.fmi_version)
                  for definition in design.definitions()]
     else:
@@ -290,7 +332,7 @@ def cmd_run(args) -> int:
                                 fmi_version=args.fmi_version)
         result, summary = outcome.result, outcome.summary
         if result.interrupted:
-            return _interrupted(outcome, scenario.name)
+            return _interrupted(outcome, scenario.name, stop)
         print(f"{scenario.name}: {len(result.time) - 1} steps to t = {result.time[-1]:g} {result.time_unit}")
         if summary:
             print(summary)
@@ -318,14 +360,15 @@ def cmd_export(args) -> int:
 
 def _run_one(out: Path, build_dir: Path, name: str, stop: StopRequest, settings: dict | None = None) -> int:
     """Run scenario ``name`` (its defaults, or ``settings`` for :func:`fmus.scenarios.run`), write its files
-    and record into ``out``, print its summary; 0, or 130 if it was interrupted."""
+    and record into ``out``, print its summary; 0, or 128 + the signal if it was interrupted."""
     from . import report
     from .scenarios import get
     scenario = get(name)
     print(f"\n== {name}: {scenario.description}")
-    outcome = _run_scenario(name, build_dir, stop, out / f"{name}.csv", scenario.output_interval, **(settings or {}))
+    outcome = _run_scenario(name, build_dir, stop, out / f"{name}.csv", scenario.output_interval, "--out",
+                            **(settings or {}))
     if outcome.result.interrupted:
-        return _interrupted(outcome, name)
+        return _interrupted(outcome, name, stop)
     if outcome.summary:
         print(outcome.summary)
     report.save_run(out, scenario, outcome.result, outcome.summary, outcome.wall_time, build_dir)
@@ -499,7 +542,8 @@ def parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``obsfmu ...``; returns the exit code (2: a user mistake, 130: interrupted)."""
+    """``obsfmu ...``; returns the exit code (2: a user mistake, 128 + the signal: interrupted)."""
+    previous = _handlers(_raise_terminated, tuple(s for s in STOP_SIGNALS if s != signal.SIGINT))
     try:
         args = parser().parse_args(argv)
         return args.func(args)
@@ -508,13 +552,15 @@ def main(argv: list[str] | None = None) -> int:
     except (ParameterError, SimulationError, OutputError) as exc:
         print(f"obsfmu: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
-    except KeyboardInterrupt:
-        print("\nobsfmu: interrupted", file=sys.stderr)
-        return EXIT_INTERRUPTED
+    except KeyboardInterrupt as exc:  # Ctrl-C, or a Terminated
+        print(f"\nobsfmu: interrupted ({exc or 'SIGINT'})", file=sys.stderr)
+        return interrupted_status(exc)
     except OSError as exc:  # a refusal of the file system not checked beforehand: still one line
         where = f"{exc.filename}: " if exc.filename else ""
         print(f"obsfmu: error: {where}{exc.strerror or exc}", file=sys.stderr)
         return EXIT_USAGE
+    finally:
+        _restore(previous)
 
 
 from .campaign import cli as _campaign_cli  # noqa: E402,F401  registers obsfmu sweep

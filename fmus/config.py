@@ -36,11 +36,18 @@ gains of 1e20).  Either failure is refused with the reason.
 Every error names the field it comes from (``plant.A: expected a square
 matrix ...``); dimensions, finiteness, observability/controllability and the
 stability of the designed gains are all checked before anything is built.
+Limits: at most ``MAX_DIMENSION`` (200) states, inputs and outputs each --
+the FMUs have one variable per matrix entry (200 states: 40 000 for ``A``,
+built in about 7 s and 340 MB); a bigger matrix is refused as soon as its
+size is read, and a file over ``MAX_FILE_BYTES`` (4 MiB) before it is read.  Texts (``description``, units) hold no control characters
+(they go into the modelDescription's XML).
 """
 
 from __future__ import annotations
 
+import os
 import sys
+import unicodedata
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -60,7 +67,10 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-__all__ = ["LinearDesign", "load_config", "design_from_config"]
+__all__ = ["LinearDesign", "load_config", "design_from_config", "MAX_DIMENSION"]
+
+MAX_DIMENSION = 200  #: states, inputs and outputs of a design, each (its FMUs: a variable per matrix entry)
+MAX_FILE_BYTES = 4 * 2**20  #: a design file (200 states at 17 digits: about 1 MB)
 
 _SECTIONS = {
     "": {"name", "description", "plant", "observer", "controller"},
@@ -104,6 +114,10 @@ def load_config(path: Path | str) -> dict:
     path = Path(path)
     try:
         with open(path, "rb") as handle:
+            size = os.fstat(handle.fileno()).st_size
+            if size > MAX_FILE_BYTES:
+                raise ParameterError(f"config {path}: {size / 2**20:.1f} MiB; a design file has at most "
+                                     f"{MAX_FILE_BYTES // 2**20} MiB ({MAX_DIMENSION} states, inputs and outputs)")
             config = tomllib.load(handle)
     except FileNotFoundError:
         raise ParameterError(f"config: file {path} does not exist") from None
@@ -145,6 +159,35 @@ def _reject_booleans(field: str, value, index: tuple[int, ...] = ()) -> None:
             _reject_booleans(field, item, index + (i + 1,))
 
 
+#: the axes of the plant's matrices, for the size limit
+_AXES = {"A": ("states", "states"), "B": ("states", "inputs"), "C": ("outputs", "states"), "D": ("outputs", "inputs")}
+
+
+def _require_small(plant: dict) -> None:
+    """Refuse a plant matrix beyond ``MAX_DIMENSION`` rows or columns from its size alone (before any work)."""
+    for key, axes in _AXES.items():
+        rows = plant.get(key)
+        if not isinstance(rows, list):
+            continue
+        columns = len(rows[0]) if rows and isinstance(rows[0], list) else 1
+        for size, axis in zip((len(rows), columns), axes):
+            if size > MAX_DIMENSION:
+                raise ParameterError(f"plant.{key}: {size} {axis}; a design has at most {MAX_DIMENSION} states, "
+                                     f"inputs and outputs each (its FMUs have one variable per matrix entry)")
+
+
+def _require_text(field: str, value) -> str:
+    """A string without control characters (it goes into the FMUs' XML and logs)."""
+    if not isinstance(value, str):
+        raise ParameterError(f"{field}: expected a string, got {value!r}")
+    for position, character in enumerate(value):
+        if unicodedata.category(character) == "Cc":
+            raise ParameterError(f"{field}: control character {character!r} at position {position + 1}; "
+                                 "texts are written into the FMUs' XML, write them on one line without "
+                                 "control characters")
+    return value
+
+
 def _units(plant: dict, model: StateSpace) -> dict:
     units = {}
     for key, size in (("state_units", model.n), ("input_units", model.m), ("output_units", model.p)):
@@ -152,7 +195,7 @@ def _units(plant: dict, model: StateSpace) -> dict:
             values = plant[key]
             if not (isinstance(values, list) and len(values) == size and all(isinstance(v, str) for v in values)):
                 raise ParameterError(f"plant.{key}: expected {size} unit strings, got {values!r}")
-            units[key] = values
+            units[key] = [_require_text(f"plant.{key}[{i + 1}]", unit) for i, unit in enumerate(values)]
     return units
 
 
@@ -239,6 +282,7 @@ def design_from_config(config: dict) -> LinearDesign:
     for key in ("A", "C"):
         if key not in plant:
             raise ParameterError(f"plant.{key}: missing")
+    _require_small(plant)
     model = StateSpace.checked(plant["A"], plant.get("B"), plant["C"], plant.get("D"), prefix="plant.")
     n = model.n
     if not is_observable(model.A, model.C):
@@ -270,9 +314,7 @@ def design_from_config(config: dict) -> LinearDesign:
     build_plant = plant.get("fmu", True)
     if not isinstance(build_plant, bool):
         raise ParameterError(f"plant.fmu: expected true or false, got {build_plant!r}")
-    description = config.get("description", "")
-    if not isinstance(description, str):
-        raise ParameterError("description: expected a string")
+    description = _require_text("description", config.get("description", ""))
     return LinearDesign(
         name=name,
         description=description,

@@ -12,11 +12,16 @@
   truncated file under the name of a complete one.
 * :func:`replacing` -- the same rename-into-place for every other output (figures, summaries, the
   report).
+
+A full disk (or a file-size limit) while writing is an :class:`OutputError` naming the option and
+the path, and no temporary file stays behind: a CSV keeps its complete rows so far in
+``NAME.partial.csv`` (the last, cut row dropped), any other file its previous version.
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import tempfile
 from pathlib import Path
@@ -83,24 +88,33 @@ def _file_mode() -> int:
     return 0o666 & ~umask
 
 
-def _hidden_temporary(target: Path, mode: str):
-    """A temporary file beside ``target`` (same file system: renaming it is atomic), hidden, ``.tmp``."""
-    handle = tempfile.NamedTemporaryFile(mode, dir=target.parent, prefix=f".{target.name}.", suffix=".tmp",
-                                         delete=False)
-    os.chmod(handle.name, _file_mode())
-    return handle
+def _hidden_temporary(target: Path) -> tuple[int, Path]:
+    """A temporary file beside ``target`` (same file system: renaming it is atomic), hidden, ``.tmp``:
+    its descriptor (unbuffered: a failed write leaves nothing pending) and its path."""
+    descriptor, name = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
+    os.fchmod(descriptor, _file_mode())
+    return descriptor, Path(name)
+
+
+def _no_room(exc: OSError) -> bool:
+    """A write refused for want of room: a full disk or quota, a file-size limit, an I/O error."""
+    return exc.errno in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EIO)
 
 
 @contextlib.contextmanager
 def replacing(target: Path | str):
-    """Yield a temporary path beside ``target``; rename it to ``target`` if the block succeeds."""
+    """Yield a temporary path beside ``target``; rename it to ``target`` if the block succeeds (a full
+    disk: :class:`OutputError` naming ``target``, which keeps its previous version)."""
     target = Path(target)
-    handle = _hidden_temporary(target, "wb")
-    handle.close()
-    temporary = Path(handle.name)
+    descriptor, temporary = _hidden_temporary(target)
+    os.close(descriptor)
     try:
         yield temporary
         os.replace(temporary, target)
+    except OSError as exc:
+        if not _no_room(exc):
+            raise
+        raise OutputError(f"{target}: cannot be written ({exc.strerror or exc})") from None
     finally:
         temporary.unlink(missing_ok=True)
 
@@ -110,15 +124,17 @@ class _CsvStream:
 
     The selection is :meth:`Result.sampled`'s, made on the fly: a target time is served by the
     row before it or the row after it, whichever is nearer (the earlier on a tie), and the last
-    row is always written.
+    row is always written.  A write refused for want of room ends the stream (:meth:`_out_of_room`).
     """
 
-    def __init__(self, target: Path, columns: list[str], interval: float | None):
-        self.target, self.interval = target, interval
-        self.handle = _hidden_temporary(target, "w")
-        self.handle.write(",".join(["time"] + columns) + "\n")
+    def __init__(self, target: Path, columns: list[str], interval: float | None, option: str = "--csv"):
+        self.target, self.interval, self.option = target, interval, option
+        self.descriptor, self.temporary = _hidden_temporary(target)
+        self.size = 0              # bytes written, every one of them part of a complete line
+        self.rows_written = -1     # rows on disk (the header is not one)
+        self.lines: list[str] = [",".join(["time"] + columns) + "\n"]
+        self.flush()
         self.format = ",".join(["%.17g"] * (len(columns) + 1)) + "\n"
-        self.lines: list[str] = []
         self.previous: tuple[int, float, np.ndarray] | None = None
         self.written = -1          # index of the last row written
         self.row = -1
@@ -146,26 +162,68 @@ class _CsvStream:
             self.written = row
 
     def flush(self) -> None:
-        self.handle.write("".join(self.lines))
+        if self.descriptor is None:   # ended (for want of room)
+            return
+        data = memoryview("".join(self.lines).encode())
+        done = 0
+        try:
+            while done < len(data):
+                done += os.write(self.descriptor, data[done:])
+        except OSError as exc:
+            if not _no_room(exc):
+                raise
+            self._out_of_room(exc, bytes(data[:done]))
+        self.size += len(data)
+        self.rows_written += len(self.lines)
         self.lines.clear()
 
-    def close(self, complete: bool) -> Path:
-        """Finish the file and rename it: to the target if ``complete``, else to its partial name."""
-        if self.previous is not None:
-            self._write(*self.previous)  # the last row, always
-        self.flush()
-        self.handle.flush()
-        os.fsync(self.handle.fileno())
-        self.handle.close()
+    def _out_of_room(self, exc: OSError, written: bytes) -> None:
+        """Keep the complete rows on disk in the partial file (or nothing), then raise naming the path."""
+        complete = written[:written.rfind(b"\n") + 1]
+        rows = self.rows_written + complete.count(b"\n")
+        kept = None
+        try:
+            if rows > 0:
+                os.ftruncate(self.descriptor, self.size + len(complete))   # drop the cut row
+                kept = self._rename(complete=False)
+        except OSError:
+            kept = None
+        finally:
+            self.discard()
+        where = f"the {rows} complete rows so far are in {kept}" if kept else "nothing written"
+        raise OutputError(f"{self.option} {self.target}: {exc.strerror or exc}; {where}") from None
+
+    def _rename(self, complete: bool) -> Path:
+        os.fsync(self.descriptor)
+        os.close(self.descriptor)
+        self.descriptor = None
         final, stale = (self.target, partial_path(self.target)) if complete else \
             (partial_path(self.target), self.target)
-        os.replace(self.handle.name, final)
+        os.replace(self.temporary, final)
         stale.unlink(missing_ok=True)  # an earlier run's file would pass for this run's
         return final
 
+    def close(self, complete: bool) -> Path | None:
+        """Finish the file and rename it: to the target if ``complete``, else to its partial name
+        (None: the stream ended already, for want of room)."""
+        if self.descriptor is None:
+            return None
+        if self.previous is not None:
+            self._write(*self.previous)  # the last row, always
+        self.flush()
+        try:
+            return self._rename(complete)
+        except OSError as exc:
+            self.discard()
+            if not _no_room(exc):
+                raise
+            raise OutputError(f"{self.option} {self.target}: {exc.strerror or exc}; nothing written") from None
+
     def discard(self) -> None:
-        self.handle.close()
-        Path(self.handle.name).unlink(missing_ok=True)
+        if self.descriptor is not None:
+            os.close(self.descriptor)
+            self.descriptor = None
+        self.temporary.unlink(missing_ok=True)
 
 
 class StreamingRecorder(Recorder):
@@ -181,10 +239,13 @@ class StreamingRecorder(Recorder):
         keeps every row).
     block_rows : int
         Rows kept in memory between two writes.
+    option : str
+        The option that named ``csv``, for the messages.
     """
 
-    def __init__(self, csv: Path | None = None, interval: float | None = None, block_rows: int = 1024):
-        self.csv, self.interval, self.block_rows = csv, interval, block_rows
+    def __init__(self, csv: Path | None = None, interval: float | None = None, block_rows: int = 1024,
+                 option: str = "--csv"):
+        self.csv, self.interval, self.block_rows, self.option = csv, interval, block_rows, option
         self._csv: _CsvStream | None = None
         self._scratch = None
         self._rows = self._filled = 0
@@ -196,7 +257,7 @@ class StreamingRecorder(Recorder):
         self._block = np.empty((self.block_rows, len(self.columns) + 1))
         self._filled = 0
         self._rows = 0
-        self._csv = _CsvStream(self.csv, self.columns, self.interval) if self.csv else None
+        self._csv = _CsvStream(self.csv, self.columns, self.interval, self.option) if self.csv else None
 
     def record(self, t: float, values: np.ndarray) -> None:
         row = self._block[self._filled]
@@ -209,7 +270,13 @@ class StreamingRecorder(Recorder):
             self._flush()
 
     def _flush(self) -> None:
-        self._block[:self._filled].tofile(self._scratch)
+        try:
+            self._block[:self._filled].tofile(self._scratch)
+        except OSError as exc:
+            if not _no_room(exc):
+                raise
+            raise OutputError(f"temporary directory {tempfile.gettempdir()}: {exc.strerror or exc} (a run keeps "
+                              "its rows there; set TMPDIR to a directory with room)") from None
         self._rows += self._filled
         self._filled = 0
         if self._csv:

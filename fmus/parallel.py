@@ -14,7 +14,8 @@ steps) starts first, so it does not end up alone at the end.
   the current communication step (the rows so far kept in ``NAME.partial.csv``), a second kills the
   worker.  The parent's first Ctrl-C (:class:`fmus.cli.StopRequest`) also sets a shared flag every
   worker asks after each communication point (for a SIGINT sent to the parent alone) and cancels the
-  scenarios not started yet; the exit code is 130.
+  scenarios not started yet; the exit code is 130.  SIGTERM and SIGHUP are taken the same way (exit
+  128 + the signal: 143, 129).
 * **Failures.** A scenario that fails does not stop the others: they finish and write their files,
   then the failure is reported as ``obsfmu: error: NAME: why`` (exit 2, no report, as the sequential
   run); an unexpected exception is re-raised in the parent with the worker's traceback.
@@ -33,7 +34,7 @@ from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from pathlib import Path
 
-from .cli import EXIT_INTERRUPTED, EXIT_USAGE
+from .cli import EXIT_USAGE
 
 __all__ = ["run_in_workers", "cost"]
 
@@ -45,7 +46,7 @@ class Finished:
     """What a worker sends back for one scenario (its files are already written)."""
 
     name: str
-    status: int            # 0, or 130: interrupted
+    status: int            # 0, or 128 + a signal: interrupted
     stdout: str = ""
     stderr: str = ""
     error: str | None = None   # the message of a user-level error (ParameterError, SimulationError, OutputError)
@@ -78,7 +79,7 @@ def _job(out: Path, build_dir: Path, name: str, settings: dict | None) -> Finish
     from .output import OutputError
 
     if _STOP():
-        return Finished(name, EXIT_INTERRUPTED, started=False)
+        return Finished(name, _STOP.exit_code, started=False)
     stdout, stderr = io.StringIO(), io.StringIO()
     status, error = 0, None
     with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
@@ -115,7 +116,7 @@ def _show(finished: Finished | None) -> None:
 def run_in_workers(out: Path, build_dir: Path, names: list[str], stop, jobs: int,
                    settings: dict[str, dict]) -> int:
     """Run ``names`` (settings per name for :func:`fmus.scenarios.run`, default: the scenario's) into
-    ``out`` in ``jobs`` spawned processes; 0, 2 (a scenario failed) or 130 (interrupted)."""
+    ``out`` in ``jobs`` spawned processes; 0, 2 (a scenario failed) or 128 + a signal (interrupted)."""
     context = multiprocessing.get_context("spawn")
     flag = context.RawValue("b", 0)
     longest_first = sorted(names, key=lambda name: -cost(name, settings.get(name)))
@@ -149,12 +150,13 @@ def run_in_workers(out: Path, build_dir: Path, names: list[str], stop, jobs: int
                 shown += 1
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
-    return _status(names, results, crashed)
+    return _status(names, results, crashed, stop)
 
 
-def _status(names, results: dict[str, Finished | None], crashed: dict[str, BaseException]) -> int:
-    """0; 130 if a scenario was interrupted or not started (Ctrl-C); 2 if one failed (named on stderr);
-    an unexpected exception of a worker is re-raised (with the worker's traceback)."""
+def _status(names, results: dict[str, Finished | None], crashed: dict[str, BaseException], stop) -> int:
+    """0; 128 + the signal if a scenario was interrupted or not started (the parent's, else a worker's);
+    2 if one failed (named on stderr); an unexpected exception of a worker is re-raised (with the
+    worker's traceback)."""
     errors = [(name, results[name].error) for name in names if results.get(name) and results[name].error]
     for name, error in errors:
         print(f"obsfmu: error: {name}: {error}", file=sys.stderr)
@@ -163,5 +165,6 @@ def _status(names, results: dict[str, Finished | None], crashed: dict[str, BaseE
         print(f"obsfmu: scenario {name} failed:", file=sys.stderr)
         raise exc
     if any(result is None or result.status for result in results.values()):
-        return EXIT_INTERRUPTED
+        signalled = [result.status for result in results.values() if result and result.status]
+        return stop.exit_code if stop.requested or not signalled else signalled[0]
     return EXIT_USAGE if errors else 0

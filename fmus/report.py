@@ -6,10 +6,16 @@ summary's numbers, the run's settings, the FMUs and their validation).  :func:`w
 turns the records into ``report.html``: self-contained (figures embedded as data URIs, no
 script, no network), one section per scenario with
 
-* what the paper claims (``Scenario.claim``: our words, the paper's numbers),
-* what obsfmu measures (the figure, the summary and a table of its metrics),
-* the agreement with the independent monolithic reference (``Summary.reference``),
+* what the paper claims (``Scenario.claim``: our words, the paper's numbers), each number of it
+  marked met / not met with the measured and the claimed value (:mod:`fmus.claims`),
+* what obsfmu measures (the figure, the summary and a table of its metrics), each number with the
+  interval of the run where it holds,
+* the agreement with the independent monolithic reference (``Summary.reference``) and its interval,
 * the FMI facts (FMUs, ``fmpy.validation`` result, step, order, coupling, master).
+
+The results folder may come from elsewhere (or be tampered with): a record is used only if every
+field has its type (:func:`load_run`), every text of it is escaped, and a figure is embedded only if
+it is a file of the results folder itself (a plain name, no link leading out of it).
 """
 
 from __future__ import annotations
@@ -23,6 +29,7 @@ import sys
 from datetime import datetime, timezone
 from pathlib import Path
 
+from .claims import CHECKS, holds_over, reference_interval, verdict
 from .metrics import NOT_REACHED
 from .output import replacing
 
@@ -95,13 +102,38 @@ def save_run(out_dir: Path, scenario, result, summary, wall_time: float, build_d
     return path
 
 
+_NUMBER = (int, float)
+#: the fields of a record and their types: a type, or (list, item type) / (dict, key type, value type)
+_FMU = {"instance": str, "model": str, "file": str, "fmi_version": str, "variables": int,
+        "capabilities": (list, str), "validation": (list, str)}
+_SUMMARY = {"lines": (list, str), "metrics": (dict, str, _NUMBER), "reference": str}
+_RECORD = {"scenario": str, "description": str, "claim": str, "time_unit": str, "stop_time": _NUMBER,
+           "step": _NUMBER, "order": str, "coupling": str, "changed": (dict, str, _NUMBER), "steps": int,
+           "end_time": _NUMBER, "wall_time": _NUMBER, "figures": (list, str), "fmus": (list, _FMU)}
+
+
+def _fits(value, kind) -> bool:
+    """``value`` has the type ``kind`` describes (see ``_RECORD``)."""
+    if isinstance(kind, dict):
+        return isinstance(value, dict) and all(key in value and _fits(value[key], item) for key, item in kind.items())
+    if isinstance(kind, tuple) and kind[0] is list:
+        return isinstance(value, list) and all(_fits(item, kind[1]) for item in value)
+    if isinstance(kind, tuple) and kind[0] is dict:
+        return isinstance(value, dict) and all(_fits(k, kind[1]) and _fits(v, kind[2]) for k, v in value.items())
+    return isinstance(value, kind)
+
+
 def load_run(out_dir: Path, name: str) -> dict | None:
-    """The record of scenario ``name`` in ``out_dir`` (None if missing, unreadable or of another version)."""
+    """The record of scenario ``name`` in ``out_dir`` (None if missing, unreadable, of another version or
+    not of the record's shape: a field of another type)."""
     try:
         record = json.loads((Path(out_dir) / f"{name}.json").read_text())
     except (OSError, ValueError):
         return None
-    return record if isinstance(record, dict) and record.get("version") == RECORD_VERSION else None
+    usable = (_fits(record, _RECORD) and record.get("version") == RECORD_VERSION and record["scenario"] == name
+              and (record.get("summary") is None or _fits(record["summary"], _SUMMARY))
+              and isinstance(record.get("csv"), (str, type(None))))
+    return record if usable else None
 
 
 def has_run(out_dir: Path, name: str) -> bool:
@@ -120,6 +152,7 @@ td.number { text-align: right; font-family: monospace; }
 img.figure { max-width: 100%; border: 1px solid #ddd; }
 pre { background: #f6f6f6; padding: 0.6em; overflow-x: auto; font-size: 0.85em; }
 .note { color: #555; font-size: 0.9em; }
+td.met { color: #060; font-weight: bold; } td.not-met { color: #a00; font-weight: bold; }
 """
 
 
@@ -130,10 +163,18 @@ def _e(text) -> str:
 _MEDIA = {".svg": "image/svg+xml", ".png": "image/png"}
 
 
+def _inside(out_dir: Path, name: str) -> bool:
+    """``name`` is a file of ``out_dir`` itself: a plain name, no link leading elsewhere."""
+    path = out_dir / name
+    return (Path(name).name == name and name not in (".", "..") and path.is_file()
+            and path.resolve().parent == out_dir.resolve())
+
+
 def _figure(out_dir: Path, record: dict) -> str:
-    """The scenario's figure as a data URI: the SVG (vector) if there is one, else the PNG."""
+    """The scenario's figure as a data URI: the SVG (vector) if there is one, else the PNG (only files of the
+    results folder itself)."""
     candidates = [name for suffix in _MEDIA for name in record["figures"]
-                  if name.endswith(suffix) and (out_dir / name).exists()]
+                  if name.endswith(suffix) and _inside(out_dir, name)]
     if not candidates:
         return '<p class="note">No figure.</p>'
     name = candidates[0]
@@ -142,12 +183,28 @@ def _figure(out_dir: Path, record: dict) -> str:
             f'alt="figure of scenario {_e(record["scenario"])}">')
 
 
-def _metrics_table(name: str, metrics: dict) -> str:
+def _metrics_table(record: dict, metrics: dict) -> str:
+    name, end, unit = record["scenario"], record["end_time"], record["time_unit"]
     rows = "\n".join(
         f'<tr><td>{_e(key)}</td><td class="number" data-scenario="{_e(name)}" data-metric="{_e(key)}" '
-        f'data-value="{_e(repr(float(value)))}">{_e(format_metric(float(value)))}</td></tr>'
+        f'data-value="{_e(repr(float(value)))}">{_e(format_metric(float(value)))}</td>'
+        f'<td class="interval">{_e(holds_over(key, end, unit) or "not stated")}</td></tr>'
         for key, value in metrics.items())
-    return f'<table class="metrics"><tr><th>metric</th><th>value</th></tr>\n{rows}\n</table>'
+    return f'<table class="metrics"><tr><th>metric</th><th>value</th><th>holds</th></tr>\n{rows}\n</table>'
+
+
+def _claims_table(record: dict, metrics: dict) -> str:
+    """Every number of the scenario's claim: met / not met, the measured and the claimed value."""
+    checks = CHECKS.get(record["scenario"], ())
+    if not checks:
+        return '<p class="note">No number of this claim is checked.</p>'
+    rows = []
+    for check in checks:
+        mark, numbers = verdict(check, metrics, record["time_unit"])
+        rows.append(f'<tr><td>{_e(check.claim)}</td><td class="{mark.replace(" ", "-")}" data-check='
+                    f'"{_e(check.metric)}">{_e(mark)}</td><td>{_e(numbers)}</td></tr>')
+    return ('<table class="checks"><tr><th>claimed</th><th>verdict</th><th>measured / claimed</th></tr>\n'
+            + "\n".join(rows) + "\n</table>")
 
 
 def _fmi_table(record: dict) -> str:
@@ -156,7 +213,7 @@ def _fmi_table(record: dict) -> str:
         validation = "valid (no problem reported)" if not fmu["validation"] else "INVALID: " + "; ".join(
             fmu["validation"])
         rows.append(f"<tr><td>{_e(fmu['instance'])}</td><td>{_e(fmu['file'])}</td><td>FMI {_e(fmu['fmi_version'])} "
-                    f"co-simulation</td><td>{fmu['variables']}</td><td>{_e(', '.join(fmu['capabilities']))}</td>"
+                    f"co-simulation</td><td>{_e(fmu['variables'])}</td><td>{_e(', '.join(fmu['capabilities']))}</td>"
                     f"<td class=\"validation\">{_e(validation)}</td></tr>")
     return ("<table class=\"fmus\"><tr><th>instance</th><th>FMU</th><th>interface</th><th>variables</th>"
             "<th>capabilities</th><th>fmpy.validation</th></tr>\n" + "\n".join(rows) + "\n</table>")
@@ -191,12 +248,15 @@ def _section(out_dir: Path, record: dict) -> str:
 <p class="note">{_e(record['description'])}</p>
 <h3>What the paper claims</h3>
 <p class="claim">{_e(record['claim'] or 'No claim recorded for this scenario.')}</p>
+{_claims_table(record, summary['metrics'])}
 <h3>What obsfmu measures</h3>
+<p class="note">The figure shows the whole run, t = 0 .. {_e(f"{record['end_time']:g} {record['time_unit']}")}.</p>
 {_figure(out_dir, record)}
 <pre class="summary">{_e(chr(10).join(summary['lines']))}</pre>
-{_metrics_table(name, summary['metrics'])}
+{_metrics_table(record, summary['metrics'])}
 <h3>Agreement with the independent monolithic reference</h3>
 <p class="reference">{_e(summary['reference'] or 'No reference check recorded.')}</p>
+<p class="note">It holds {_e(reference_interval(name, record['end_time'], record['time_unit']))}.</p>
 <h3>FMI facts</h3>
 {_fmi_table(record)}
 {_run_facts(record)}

@@ -10,7 +10,7 @@ Modules (one concept each):
 * :mod:`observers.luenberger` -- full-order observer (paper 002)
 * :mod:`observers.feedback` -- state feedback ``u = -K x_hat + r``
 * :mod:`observers.estimation` -- parameter estimators (gradient, LS, DREM, FT-DREM)
-* :mod:`observers.ltv_adaptive` -- adaptive observer of an LTV plant, LS with forgetting (paper 001)
+* :mod:`observers.ltv` -- adaptive observer of an LTV plant, LS with forgetting (paper 001)
 * :mod:`observers.uio` -- unknown-input observer with FT-DREM stages (paper 003)
 * :mod:`observers.gpebo` -- discrete GPEBO + DREM observer (paper 000)
 * :mod:`observers.state_affine` -- DREM observer through a state-affine form (paper 004)

@@ -29,7 +29,7 @@ block's arrays without copying them, and restoring it is a complete rollback.  C
 (``list``, ``dict``, ``deque``) are copied both ways, since blocks append to them.
 
 Immutable objects: a class whose instances never change once built (its methods return new
-ones, as :class:`~observers.ltv_stepping.PolynomialInputs` does) and that checks the numbers it
+ones, as :class:`~observers.ltv.stepping.PolynomialInputs` does) and that checks the numbers it
 is built from -- finite and within :data:`~observers.block.MAGNITUDE_BOUND`, else
 :class:`~observers.checks.SignalError` -- declares ``immutable = True``.  A *rollback point*
 (``capture(block, rollback=True)``, the FMU layer's point to return to after a refused step, and

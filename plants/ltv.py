@@ -11,10 +11,18 @@ A communication step is integrated with RK4 sub-steps, each at most ``max_subste
 and short enough for ``C^T x`` to change by at most ``max_dy`` (estimated from ``y'`` at the
 step start) -- with ``f = sin`` and ``|y|`` in the thousands, ``f(y)`` oscillates at
 hundreds of rad/s and must be resolved.
+
+The example's functions (:func:`A_paper`, :func:`L_paper`, :func:`f_sin`) are referenced from FMU
+definitions as ``"plants.ltv:<name>"`` (:mod:`fmus.runtime.callables`); the ``plants`` package is bundled into
+every FMU, so they need no ``extra_modules``.  Write your own functions with the same signatures in a
+module of yours to observe another plant of the class: ``A(t) -> (n, n)`` and ``L(t) -> (n,)`` arrays,
+``f(y) -> float``; ``L(t)`` must make ``A0(t) = A(t) - L(t) C^T`` uniformly stable (Assumptions 3-4;
+here ``A0 = [[0, 1], [-9, 0]]`` for ``C = [1; 0]``).
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from typing import Mapping
 
@@ -23,11 +31,30 @@ import numpy as np
 from observers.block import Block, Segment
 from observers.checks import ParameterError, SignalError, as_vector, require_positive
 from observers.integrators import DEFAULT_SUBSTEP_BUDGET, require_budget, rk4_step, substep_count
-from observers.ltv_stepping import PolynomialInputs, output_function, time_function
+from observers.ltv.stepping import PolynomialInputs, output_function, time_function
 
 from .signals import SampledNoise
 
-__all__ = ["OutputNonlinearLTVPlant"]
+__all__ = ["OutputNonlinearLTVPlant", "A_paper", "L_paper", "f_sin", "C_PAPER"]
+
+# -- the functions of the paper's example (Kozachek, Bobtsov, Nikolaev 2023) ----------------------
+#: output vector of the example, ``y = C^T x = x1``
+C_PAPER = (1.0, 0.0)
+
+
+def A_paper(t: float) -> np.ndarray:
+    """``A(t) = [[2 - sin t, 1], [-8 + cos t, 0]]``."""
+    return np.array([[2.0 - math.sin(t), 1.0], [-8.0 + math.cos(t), 0.0]])
+
+
+def L_paper(t: float) -> np.ndarray:
+    """``L(t) = [2 - sin t; 1 + cos t]``, so that ``A(t) - L(t) C^T = [[0, 1], [-9, 0]]``."""
+    return np.array([2.0 - math.sin(t), 1.0 + math.cos(t)])
+
+
+def f_sin(y: float) -> float:
+    """``f(y) = sin y`` (the example's ``w = m sin y``)."""
+    return math.sin(y)
 
 
 class OutputNonlinearLTVPlant(Block):

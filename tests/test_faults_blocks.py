@@ -21,7 +21,7 @@ from fmus.scenarios import SCENARIOS
 from observers.block import Block, Segment
 from observers.integrators import BudgetError, require_budget, substep_count
 from observers.checks import ParameterError, SignalError
-from observers.ltv_stepping import IntegralSamples, PolynomialInputs
+from observers.ltv.stepping import IntegralSamples, PolynomialInputs
 from observers.state import Leaves, StateError, capture, plain, restore
 
 

@@ -16,7 +16,7 @@ from fmpy.validation import validate_fmu
 from scipy.linalg import expm
 
 from fmus.builder import build_fmu, is_current
-from reference.paper002 import K
+from fmus.scenarios.ship.reference import K
 from fmus.runtime.kinds.linear import plant_definition
 from observers.lti_model import StateSpace
 

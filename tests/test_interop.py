@@ -20,8 +20,8 @@ from fmus.export import export
 from fmus.master import cosimulate
 from fmus.scenarios import ensure_fmus, get, run, system
 
-from reference.paper002 import K
-from reference.paper002 import exact as ship_exact
+from fmus.scenarios.ship.reference import K
+from fmus.scenarios.ship.reference import exact as ship_exact
 
 
 @pytest.fixture(scope="module")
@@ -200,7 +200,7 @@ def test_ecos_runs_the_ssp_package_like_our_jacobi_master(build_dir, tmp_path):
 
 @pytest.fixture(scope="module")
 def bounded_reference():
-    from fmus.scenarios.ltv_ls import load_reference
+    from fmus.scenarios.ltv_common import load_reference
     return load_reference("bounded")
 
 
@@ -212,7 +212,7 @@ def parameter_error(result, reference) -> float:
 
 def test_masters_on_the_bounded_ltv_case(build_dir, bounded_reference):
     """ltv-ls-bounded (20 s) against its stored monolithic Radau reference."""
-    from reference import paper001
+    from fmus.scenarios.ltv_common import reference as paper001
 
     held, _ = run("ltv-ls-bounded", build_dir, step=1e-3, coupling="hold")
     interpolated, _ = run("ltv-ls-bounded", build_dir, step=1e-2, coupling="linear")

@@ -1,6 +1,6 @@
 """Paper 000 (issue 7): plant, derived regression and GPEBO + DREM observer against independent loops.
 
-The truth comes from ``tests/reference/paper000.py``, a plain discrete loop of the example written
+The truth comes from ``fmus/scenarios/discrete_gpebo/reference.py``, a plain discrete loop of the example written
 without importing the project.  Numbers in comments were measured with the defaults.
 """
 
@@ -10,8 +10,8 @@ import pytest
 from observers.block import Segment
 from observers.checks import ParameterError, SignalError
 from observers.gpebo import ExampleRegression, GeneratorModel, GpeboFilters, GpeboObserver, generator_matrix
-from plants.paper000 import EXAMPLE, GeneratorPlant, example_model
-from reference import paper000 as ref
+from plants.gpebo import EXAMPLE, GeneratorPlant, example_model
+from fmus.scenarios.discrete_gpebo import reference as ref
 
 SINES = ref.INPUTS["sines"]
 

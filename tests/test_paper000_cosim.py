@@ -1,6 +1,6 @@
 """Paper 000 (issue 7) through FMUs: scenario ``discrete-gpebo`` against the independent discrete loops.
 
-The reference (``tests/reference/paper000.py``) imports nothing from the project.
+The reference (``fmus/scenarios/discrete_gpebo/reference.py``) imports nothing from the project.
 """
 
 import numpy as np
@@ -11,7 +11,7 @@ from fmus import cli
 from fmus.master import SimulationError
 from fmus.scenarios import ensure_fmus, get, run
 from fmus.scenarios.discrete_gpebo import plant_residual
-from reference import paper000 as ref
+from fmus.scenarios.discrete_gpebo import reference as ref
 
 PAPER_STATE = dict(xi_b0=[1.0, 0.5], xi_t0=[0.5, -0.4], x0=[0.3, -0.2])   # the scenario's defaults
 SILENCE = [("source", "amplitude[1]", 0.0), ("source", "amplitude[2]", 0.0)]

@@ -1,7 +1,7 @@
 """Paper 001 (issue 5) through FMUs: scenarios ``ltv-ls`` and ``ltv-ls-bounded``.
 
 Source, plant and observer FMUs co-simulated by the project's master, compared with the
-independent monolithic solution (scipy) of plant + filters + estimator (``tests/reference/paper001.py``,
+independent monolithic solution (scipy) of plant + filters + estimator (``fmus/scenarios/ltv_common/reference.py``,
 which imports nothing from the project).  Numbers in comments are measured values.
 """
 
@@ -17,9 +17,9 @@ from fmus.master import SimulationError
 from fmus.metrics import time_to_stay_below
 from fmus.result import Result
 from fmus.scenarios import ensure_fmus, get, run
-from fmus.scenarios.ltv_ls import errors, load_reference
+from fmus.scenarios.ltv_common import errors, load_reference
 from observers.checks import ParameterError
-from reference import paper001 as ref
+from fmus.scenarios.ltv_common import reference as ref
 
 TOLERANCE = 1e-3
 
@@ -181,24 +181,24 @@ def test_measurement_noise_keeps_the_estimates_bounded(build_dir, bounded):
 # --- errors: early, clear, and never a crash of the host -----------------------------------------
 
 @pytest.mark.parametrize("reference, message", [
-    ("plants.paper001:nope", "A: 'plants.paper001' has no function 'nope'"),
+    ("plants.ltv:nope", "A: 'plants.ltv' has no function 'nope'"),
     ("__import__('os').system('true')", "is not a 'module:function' reference"),
     ("no_such_module:f", "cannot import module 'no_such_module'"),
 ])
 def test_bad_function_references_are_refused_before_building(reference, message):
     with pytest.raises(ParameterError, match=message):
-        ltv_observer_definition("bad", reference, [1.0, 0.0], "plants.paper001:L_paper", "plants.paper001:f_sin")
+        ltv_observer_definition("bad", reference, [1.0, 0.0], "plants.ltv:L_paper", "plants.ltv:f_sin")
 
 
 def test_lambdas_cannot_be_bundled_and_bad_values_are_named():
     with pytest.raises(ParameterError, match="only module-level functions"):
-        ltv_plant_definition("bad", lambda t: np.eye(2), [1.0, 0.0], "plants.paper001:f_sin", **ref.BOUNDED)
+        ltv_plant_definition("bad", lambda t: np.eye(2), [1.0, 0.0], "plants.ltv:f_sin", **ref.BOUNDED)
     with pytest.raises(ParameterError, match=r"L: L\(t\) must return shape \(2,\)"):
-        ltv_observer_definition("bad", "plants.paper001:A_paper", [1.0, 0.0], "plants.paper001:A_paper",
-                                "plants.paper001:f_sin")
+        ltv_observer_definition("bad", "plants.ltv:A_paper", [1.0, 0.0], "plants.ltv:A_paper",
+                                "plants.ltv:f_sin")
     with pytest.raises(ParameterError, match="gamma: must be > 0"):
-        ltv_observer_definition("bad", "plants.paper001:A_paper", [1.0, 0.0], "plants.paper001:L_paper",
-                                "plants.paper001:f_sin", gamma=0.0)
+        ltv_observer_definition("bad", "plants.ltv:A_paper", [1.0, 0.0], "plants.ltv:L_paper",
+                                "plants.ltv:f_sin", gamma=0.0)
 
 
 def test_a_bad_parameter_set_is_reported_by_the_fmu(build_dir, fmus):

@@ -1,6 +1,6 @@
 """Paper 001 without FMI: the LTV plant and the adaptive observer blocks, and their error handling.
 
-The reference (``tests/reference/paper001.py``) imports nothing from the project: plant and
+The reference (``fmus/scenarios/ltv_common/reference.py``) imports nothing from the project: plant and
 plant + filters + estimator are each ONE ODE solved with scipy (the plant: Radau at rtol = atol = 1e-10;
 plant + filters + estimator: DOP853 at rtol = atol = 1e-12).
 """
@@ -12,12 +12,11 @@ import pytest
 
 from observers.block import Segment
 from observers.checks import ParameterError, SignalError
-from observers.ltv_adaptive import LTVAdaptiveObserver
-from observers.ltv_stepping import SUBSTEP_POINTS, IntegralSamples, PolynomialInputs, resolved_output
-from plants.ltv import OutputNonlinearLTVPlant
-from plants.paper001 import A_paper, L_paper, f_sin
+from observers.ltv import LTVAdaptiveObserver
+from observers.ltv.stepping import SUBSTEP_POINTS, IntegralSamples, PolynomialInputs, resolved_output
+from plants.ltv import A_paper, L_paper, OutputNonlinearLTVPlant, f_sin
 from plants.signals import SampledNoise
-from reference import paper001 as ref
+from fmus.scenarios.ltv_common import reference as ref
 
 C = [1.0, 0.0]
 
@@ -207,7 +206,7 @@ def test_resolving_the_fast_part_changes_nothing_while_y_is_slow():
     (dict(C=[1.0, float("nan")]), r"C: entry \(2,\) is not finite"),
     (dict(L=lambda t: np.zeros(2)), r"L: A0\(t\) = A\(t\) - L\(t\) C\^T has the eigenvalue"),
     (dict(L=lambda t: np.zeros(3)), r"L: L\(t\) must return shape \(2,\)"),
-    (dict(A="plants.paper001:A_paper"), "A: expected a function of time"),
+    (dict(A="plants.ltv:A_paper"), "A: expected a function of time"),
     (dict(f=lambda y: float("nan")), r"f: f\(0\) or f\(1\) is not finite"),
     (dict(f=lambda y: np.ones(2)), r"f: f\(y\) must return one number"),
     (dict(gamma=-1.0), "gamma: must be > 0"),

@@ -70,7 +70,7 @@ def test_acceptance_of_the_paper_example(default_run):
 
 
 def test_cosimulation_agrees_with_the_monolithic_radau_reference(default_run):
-    """Reference: tests/reference/paper003.py (Radau, rtol 1e-10), stored in the scenario folder."""
+    """Reference: fmus/scenarios/uio_ftdrem/reference.py (Radau, rtol 1e-10), stored in the scenario folder."""
     result, _ = default_run
     assert REFERENCE.exists() and is_default(result)
     whole = deviation_from_reference(result, start=0.0)
@@ -97,7 +97,7 @@ def test_reference_module_reproduces_the_whole_stored_reference_and_finds_the_st
     stage 4 has been identified and 1e-8 after it (t >= 8 s).
     """
     from fmus.result import Result
-    from reference import paper003 as reference
+    from fmus.scenarios.uio_ftdrem import reference
 
     stored = Result.from_csv(REFERENCE)
     with warnings.catch_warnings():
@@ -121,7 +121,7 @@ def test_reference_module_reproduces_the_whole_stored_reference_and_finds_the_st
 def test_reference_right_hand_sides_agree():
     """The reference computes one state on Python floats and stacks (its Jacobian) with numpy: the
     same equations, in every mode (which stages adapt, which switched, stage 4 on or off)."""
-    from reference import paper003 as reference
+    from fmus.scenarios.uio_ftdrem import reference
 
     model = reference.Reference(**reference.PAPER, **reference.TUNING)
     rng = np.random.default_rng(3)

@@ -1,6 +1,6 @@
 """Paper 003 without FMI: design (3)-(4), the regressions against the true plant, stages, bad input.
 
-The plant here is :class:`plants.paper003.DisturbedLTVPlant`; ``y`` is handed to the observer
+The plant here is :class:`plants.uio.DisturbedLTVPlant`; ``y`` is handed to the observer
 as a straight line between the plant's samples (what the FMU master's linear coupling does).
 Numbers quoted in comments were measured with this code (h = 1e-3 s).
 """
@@ -17,7 +17,7 @@ from observers.uio.harmonic import undo_filter
 from observers.uio.regressions import RegressionSignals, frequencies_from_annihilator
 from observers.uio.settling import SETTLED, TIMED_OUT, SettlingDetector
 from observers.uio.signals import SignalModel
-from plants.paper003 import DisturbedLTVPlant
+from plants.uio import DisturbedLTVPlant
 
 H_STEP = 1e-3
 A = np.array([[0.0, 1.0], [-2.0, 0.0]])
@@ -314,6 +314,19 @@ def test_settling_detector_settles_only_when_quiet_and_times_out():
     for k in range(25):
         never.update(0.1 * k, np.array([float(k)]), ready=True)
     assert never.status == TIMED_OUT and never.time == pytest.approx(2.0)
+
+
+def test_the_timeout_does_not_depend_on_how_the_host_sums_its_steps():
+    """Issue 28: importers that accumulate t += h reach 9.999999999999897 at 10 s (h = 1e-3): the stage
+    timeout at t = 10 fired one step late there, so x_hat differed by up to 1 around the switch."""
+    summed, exact = (SettlingDetector(tol=1e-3, window=0.5, timeout=10.0) for _ in range(2))
+    t = 0.0
+    for k in range(1, 10001):
+        t += 1e-3
+        summed.update(t, np.array([float(k)]), ready=True)
+        exact.update(k * 1e-3, np.array([float(k)]), ready=True)
+    assert t < 10.0 and summed.status == exact.status == TIMED_OUT
+    assert summed.time == t and exact.time == 10.0                # both at the step that reaches 10 s
 
 
 def test_frequencies_from_the_annihilator_and_undoing_the_filter():

@@ -2,7 +2,7 @@
 
 Every FMU is built once (session build directory), validated and co-simulated with the
 scenario defaults (Gauss-Seidel, linear coupling) and with other true parameters and initial
-states set with ``--set``.  The reference is ``tests/reference/paper004.py`` (one ODE, Radau,
+states set with ``--set``.  The reference is ``fmus/scenarios/state_affine_common/reference.py`` (one ODE, Radau,
 rtol 1e-10), written without importing the code under test.
 """
 
@@ -20,7 +20,7 @@ from fmus.scenarios import ensure_fmus, get, run
 from fmus.scenarios import state_affine_chemostat as chemostat_scenario
 from fmus.scenarios import state_affine_common as common
 from fmus.scenarios import state_affine_pendulum as pendulum_scenario
-from reference import paper004 as ref
+from fmus.scenarios.state_affine_common import reference as ref
 
 TOLERANCE = 1e-4     # acceptance: theta_hat and x_hat to 1e-4
 

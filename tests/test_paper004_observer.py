@@ -1,6 +1,6 @@
 """Paper 004 observer as plain blocks (no FMI): validation, the regression identity, the reference.
 
-The monolithic reference (``tests/reference/paper004.py``) is independent code; here the
+The monolithic reference (``fmus/scenarios/state_affine_common/reference.py``) is independent code; here the
 blocks are driven by a small loop that passes ``y`` and ``u`` as straight lines over each step,
 as the co-simulation master does with linear coupling.
 """
@@ -13,7 +13,7 @@ from observers.checks import ParameterError, SignalError
 from observers.modal import observer_gain
 from observers.state_affine import StateAffineModel, StateAffineObserver
 from plants import state_affine as ex
-from reference import paper004 as ref
+from fmus.scenarios.state_affine_common import reference as ref
 
 
 def pendulum_model(**changes):

@@ -224,3 +224,23 @@ def test_the_report_states_the_fmi_facts_and_is_self_contained(page, runs):
     assert "<script" not in html and "<link" not in html and 'src="http' not in html
     for name in SCENARIOS:
         assert f"communication step</th><td>{SHORT[name].get('step', get(name).step):g} {get(name).time_unit}" in html
+
+
+def test_every_claim_is_checked_and_every_number_says_where_it_holds(page, runs):
+    """Each scenario's claim has checks of metrics its summary has; every metric of every scenario has an
+    interval; the page marks each check met / not met / not measured."""
+    from fmus.claims import CHECKS, holds_over
+    out, done = runs
+    html = (out / "report.html").read_text()
+    for name, (result, summary, _) in done.items():
+        assert CHECKS[name], name
+        known = set(summary.metrics) | {"max_deviation_from_paper_table"}   # ship's: only runs that cover the table
+        assert {check.metric for check in CHECKS[name]} <= known, name
+        for metric in summary.metrics:
+            assert holds_over(metric, 1.0, "s"), (name, metric)
+        section = html[html.index(f'<section id="{name}"'):]
+        section = section[:section.index("</section>")]
+        marks = [part.split(">")[1].split("<")[0] for part in section.split('<td class="')[1:]
+                 if part.startswith(("met", "not-met", "not-measured"))]
+        assert len(marks) == len(CHECKS[name]) and set(marks) <= {"met", "not met", "not measured"}, name
+        assert "It holds over " in section and "not stated" not in section

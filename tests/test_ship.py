@@ -1,6 +1,6 @@
 """Acceptance of paper 002's ship scenario through FMUs (issue 3).
 
-The monolithic reference (``tests/reference/paper002.py``) is independent of the project: the
+The monolithic reference (``fmus/scenarios/ship/reference.py``) is independent of the project: the
 composite system ``xe' = Ae xe`` of paper 002, eq. (12), solved by the matrix exponential.
 """
 
@@ -13,7 +13,7 @@ from fmus.result import Result
 from fmus.scenarios import ensure_fmus, get, run
 from fmus.scenarios.ship import paper_table
 
-from reference.paper002 import exact
+from fmus.scenarios.ship.reference import exact
 
 GRID = np.round(np.arange(101) * 0.01, 2)
 

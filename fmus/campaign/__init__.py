@@ -27,7 +27,7 @@ measures), :mod:`.worker` (one sample on a reused Session), :mod:`.store`
 from __future__ import annotations
 
 __all__ = ["Campaign", "Plan", "Sample", "run_campaign", "load_rows", "summary_text", "write_plots",
-           "CampaignError", "parse_spec", "Measure", "DEFAULT_MEASURES"]
+           "CampaignError", "parse_spec", "Measure"]
 
 
 def __getattr__(name: str):
@@ -46,7 +46,7 @@ def __getattr__(name: str):
         from . import errors as module
     elif name == "parse_spec":
         from . import spec as module
-    elif name in ("Measure", "DEFAULT_MEASURES"):
+    elif name == "Measure":
         from . import measures as module
     else:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

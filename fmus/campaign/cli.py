@@ -36,6 +36,11 @@ def configure(sweep: argparse.ArgumentParser) -> None:
                        "(default: the machine's cores)")
     where.add_argument("--scheduler", metavar="ADDR", help="address of a running Dask scheduler, "
                        "e.g. tcp://HOST:8786 (see 'dask scheduler' / 'dask worker')")
+    sweep.add_argument("--dashboard", type=_address, metavar="HOST:PORT",
+                       help="serve the local cluster's Dask dashboard at HOST:PORT and print its link, e.g. "
+                            "127.0.0.1:8787, or 0.0.0.0:8787 to open it to the network (anyone who reaches the "
+                            "port sees the workers and the tasks).  Default: 127.0.0.1 on a free port, not "
+                            "announced; the scheduler and workers listen on 127.0.0.1 only, always")
     sweep.add_argument("--out", help="campaign directory (default: results/sweep-SCENARIO)")
     sweep.add_argument("--stop-time", type=_duration, help="stop time (default: the scenario's), in its unit of "
                        "time unless given: 30, 90min")
@@ -60,6 +65,14 @@ def configure(sweep: argparse.ArgumentParser) -> None:
                        help="progress bar on stderr (default: only on a terminal)")
     sweep.add_argument("--no-plots", action="store_true", help="do not write the figures")
     sweep.add_argument("--build-dir", help="where the FMUs are (built if missing; default build)")
+
+
+def _address(text: str) -> str:
+    """``HOST:PORT`` (argparse type; an empty HOST is every interface, as for Dask)."""
+    host, colon, port = text.strip().rpartition(":")
+    if not colon or not port.isdigit() or not 0 <= int(port) <= 65535 or any(c.isspace() for c in host):
+        raise argparse.ArgumentTypeError(f"{text!r}: expected HOST:PORT, e.g. 127.0.0.1:8787")
+    return f"{host}:{int(port)}"
 
 
 def _pairs(items, option: str) -> dict[str, str]:
@@ -110,6 +123,7 @@ def _with_times(campaign, args):
 
 
 def cmd_sweep(args) -> int:
+    from ..cli import interrupted_status
     from .runner import run_campaign
     from .table import summary_text
 
@@ -122,11 +136,11 @@ def cmd_sweep(args) -> int:
     try:
         table = run_campaign(plan, workers=args.workers, scheduler=args.scheduler, out=out, progress=args.progress,
                              retry_failed=args.retry_failed, report_only=args.report_only,
-                             plots=not args.no_plots)
-    except KeyboardInterrupt:
+                             plots=not args.no_plots, dashboard=args.dashboard)
+    except KeyboardInterrupt as exc:  # Ctrl-C, SIGTERM or SIGHUP (fmus.cli.Terminated)
         print(f"\ninterrupted: every finished sample is in {out / 'samples'}; rerun the same command to compute "
-              f"the rest", file=sys.stderr)
-        return 130
+              f"the rest ({exc or 'SIGINT'})", file=sys.stderr)
+        return interrupted_status(exc)
     print(summary_text(plan, table))
     written = [out / "samples", out / "samples.csv", out / "summary.txt"]
     if not args.no_plots and table.num_rows:

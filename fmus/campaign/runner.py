@@ -7,6 +7,10 @@ as soon as it arrives, and at the end compacts the dataset, writes
 ``OUT/samples.csv``, ``OUT/summary.txt`` and the figures, and returns the
 campaign's table.
 
+Addresses: the LocalCluster's scheduler, workers and nannies listen on 127.0.0.1 only, and so does
+its HTTP server (the dashboard, ``/status``, on a free port) unless ``dashboard`` asks for another
+address (``obsfmu sweep --dashboard HOST:PORT``; ``0.0.0.0:8787`` opens it to the network).
+
 Lost workers: the scheduler reschedules the tasks of a worker that died
 (up to ``allowed-failures`` times per task, then the task is a row with
 status ``crashed``); a task that raised unexpectedly is retried
@@ -19,6 +23,7 @@ from __future__ import annotations
 import json
 import logging
 import os
+import socket
 import sys
 import time
 import uuid
@@ -36,8 +41,9 @@ from .store import Store, rows_to_table
 from .table import campaign_table, measured, summary_text
 from .worker import FmuPlugin, Task, plugin_name, run_sample
 
-__all__ = ["run_campaign", "local_cluster", "default_workers", "ALLOWED_FAILURES", "RETRIES"]
+__all__ = ["run_campaign", "local_cluster", "default_workers", "ALLOWED_FAILURES", "RETRIES", "LOCALHOST"]
 
+LOCALHOST = "127.0.0.1"  #: the only interface the local cluster listens on, unless a dashboard address is given
 ALLOWED_FAILURES = 3   #: a task may lose this many workers before it is recorded as "crashed"
 RETRIES = 2            #: retries of a task that raised (run_sample catches the sample's own failures)
 
@@ -51,8 +57,9 @@ def default_workers() -> int:
 
 
 @contextmanager
-def _client(workers: int | None, scheduler: str | None, client):
-    """A dask client: the given one, one connected to ``scheduler``, or a new LocalCluster's."""
+def _client(workers: int | None, scheduler: str | None, client, dashboard: str | None = None, log=None):
+    """A dask client: the given one, one connected to ``scheduler``, or a new LocalCluster's (its dashboard
+    at ``dashboard``, announced through ``log``)."""
     if client is not None:
         yield client
         return
@@ -62,18 +69,30 @@ def _client(workers: int | None, scheduler: str | None, client):
         with Client(scheduler) as connected:
             yield connected
         return
-    with local_cluster(workers or default_workers()) as cluster, Client(cluster) as local:
+    with local_cluster(workers or default_workers(), dashboard) as cluster, Client(cluster) as local:
+        if dashboard and log:
+            log(f"dashboard: {_dashboard_link(cluster, dashboard)}")
         yield local
 
 
-def local_cluster(workers: int):
-    """A LocalCluster of ``workers`` single-threaded worker processes (each keeps its own Sessions), the
-    HTTP server on a free port, quiet logs, and ``ALLOWED_FAILURES`` lost workers allowed per task."""
+def _dashboard_link(cluster, dashboard: str) -> str:
+    """The dashboard's URL: the host asked for (Dask's link names the scheduler's), the port it got."""
+    from urllib.parse import urlsplit
+
+    host = dashboard.rpartition(":")[0] or socket.gethostname()
+    return f"http://{host}:{urlsplit(cluster.dashboard_link).port}/status"
+
+
+def local_cluster(workers: int, dashboard: str | None = None):
+    """A LocalCluster of ``workers`` single-threaded worker processes (each keeps its own Sessions), quiet
+    logs, ``ALLOWED_FAILURES`` lost workers allowed per task; everything listens on ``LOCALHOST`` only,
+    the HTTP server (dashboard) on a free port there, or at ``dashboard`` (``HOST:PORT``) if given."""
     import dask
     from distributed import LocalCluster
 
     with dask.config.set({"distributed.scheduler.allowed-failures": ALLOWED_FAILURES}):
-        return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0",
+        return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host=LOCALHOST,
+                            dashboard_address=dashboard or f"{LOCALHOST}:0", worker_dashboard_address=None,
                             silence_logs=logging.ERROR)
 
 
@@ -126,7 +145,7 @@ def _pending(plan: Plan, stored: pa.Table | None, retry_failed: bool, log) -> li
 def run_campaign(campaign: Campaign | Plan, *, workers: int | None = None, scheduler: str | None = None,
                  client=None, out: Path | str | None = None, progress: bool | None = None,
                  retry_failed: bool = False, report_only: bool = False, plots: bool = True, on_row=None,
-                 log=None) -> pa.Table:
+                 log=None, dashboard: str | None = None) -> pa.Table:
     """Run ``campaign`` (or its plan) and return its table (one row per sample, in sample order).
 
     Parameters
@@ -152,10 +171,15 @@ def run_campaign(campaign: Campaign | Plan, *, workers: int | None = None, sched
         Called with each new row once it is stored (e.g. for live monitoring).
     log : callable, optional
         Receives one-line notes (default: print to stderr).
+    dashboard : str, optional
+        ``HOST:PORT`` of the LocalCluster's dashboard (default: 127.0.0.1 on a free port, not announced;
+        ``0.0.0.0:8787`` serves it to the network).  Only with a LocalCluster.
     """
     log = log or (lambda text: print(text, file=sys.stderr))
     if sum(x is not None for x in (workers, scheduler, client)) > 1:
         raise CampaignError("workers, scheduler, client: give at most one")
+    if dashboard and (scheduler or client is not None):
+        raise CampaignError("dashboard: only for the local cluster; an existing scheduler serves its own")
     if report_only and out is None:
         raise CampaignError("report_only: needs the campaign directory (out)")
     plan = campaign if isinstance(campaign, Plan) else campaign.plan()
@@ -168,7 +192,8 @@ def run_campaign(campaign: Campaign | Plan, *, workers: int | None = None, sched
         before = len(plan.samples) - len(pending)
         bar = Progress(len(plan.samples), before, sys.stderr.isatty() if progress is None else progress)
         try:
-            _compute(plan, _tasks(plan, pending), workers, scheduler, client, store, memory, bar, on_row)
+            _compute(plan, _tasks(plan, pending), _client(workers, scheduler, client, dashboard, log), store,
+                     memory, bar, on_row)
         finally:
             bar.close()
     if store is None:
@@ -193,14 +218,14 @@ def _report(plan: Plan, store: Store, table: pa.Table, plots: bool, report_only:
         write_plots(plan, table, store.out)
 
 
-def _compute(plan: Plan, tasks: list[Task], workers, scheduler, client, store: Store | None, memory: list,
-             bar: Progress, on_row) -> None:
+def _compute(plan: Plan, tasks: list[Task], connection, store: Store | None, memory: list, bar: Progress,
+             on_row) -> None:
     """Submit the tasks, store every batch of finished rows as it arrives."""
     from distributed import as_completed
 
     invocation = uuid.uuid4().hex[:12]
     with ExitStack() as stack:
-        dask_client = stack.enter_context(_client(workers, scheduler, client))
+        dask_client = stack.enter_context(connection)
         files = {model: Path(path).read_bytes() for model, path in plan.fmus.items()}
         dask_client.register_plugin(FmuPlugin(plan.fmu_set, files))
         stack.callback(_unregister, dask_client, plugin_name(plan.fmu_set))

@@ -188,7 +188,7 @@ def cosimulate(system: System, stop_time: float, step: float, order: str = "gaus
         Fixed-step orders: split the first step into ``h/2^ramp, h/2^ramp, h/2^(ramp-1), ..., h/2``
         (every point recorded; the grid ``start_time + k step`` is kept).  The linear coupling has
         no history on the first step, and blocks that rebuild their inputs from past samples
-        (:class:`observers.ltv_stepping.PolynomialInputs`) need a few: their start-up error,
+        (:class:`observers.ltv.stepping.PolynomialInputs`) need a few: their start-up error,
         which otherwise sets the accuracy of the whole run, shrinks with the first steps.
 
     Returns

@@ -63,6 +63,7 @@ typedef struct {
     int visible;
     int logging_on;
     int refused;        /* the last call returned fmi2Error because the slave refused it */
+    size_t variables;   /* len(slave.vars): the number of its scalar variables */
     Batch batch;        /* obsfmuDoStepBatched's buffers (bound on first use) */
 } Component;
 
@@ -408,11 +409,15 @@ static fmi2Component instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2
         }
         c->instance = new_instance(c);
     }
-    if (c->instance == NULL) {
+    PyObject *vars = c->instance ? PyObject_GetAttrString(c->instance, "vars") : NULL;
+    Py_ssize_t variables = vars ? PyObject_Size(vars) : -1;
+    Py_XDECREF(vars);
+    if (c->instance == NULL || variables < 0) {
         python_error(c, "fmi2Instantiate");
         free_component(c);
         c = NULL;
     } else {
+        c->variables = (size_t)variables;
         drain_log(c);
     }
     PyGILState_Release(gil);
@@ -848,6 +853,12 @@ static fmi2Status do_step_batched(fmi2Component component, fmi2Real t, fmi2Real 
     })
 }
 
+static size_t variable_count(fmi2Component component)
+{
+    Component *c = (Component *)component;
+    return c ? c->variables : 0;
+}
+
 static int refused(fmi2Component component)
 {
     Component *c = (Component *)component;
@@ -862,7 +873,7 @@ __attribute__((visibility("default"))) const ObsfmuBridge *obsfmu_bridge(void)
         get_real, get_integer, get_boolean, get_string, set_real, set_integer, set_boolean, set_string,
         get_fmu_state, machine_of, set_fmu_state, free_fmu_state, serialized_fmu_state_size, serialize_fmu_state,
         deserialize_fmu_state, set_real_input_derivatives, clear_input_derivatives, do_step, refused,
-        do_step_batched, get_real_output_derivatives,
+        do_step_batched, get_real_output_derivatives, variable_count,
     };
     return &table;
 }

@@ -18,6 +18,7 @@
  *      never finalized (loader_common.h).
  *   3. It loads the BRIDGE (bridge.c, RTLD_LOCAL) and forwards every call to its function table.
  */
+#define _GNU_SOURCE /* dl_iterate_phdr */
 #include "fmi2Functions.h"
 #include "loader_common.h"
 
@@ -57,10 +58,11 @@ static const Version FMI2 = {2, ANY_STATE, INSTANTIATED | INITIALIZATION_MODE, S
 
 typedef Core Instance;
 
-/* The instance, or fmi2Error when the call is not allowed in its state (nothing changes). */
+/* The instance, or fmi2Error when it is not one this FMU issued and has not freed (no logger is known
+ * then: nothing is logged), or when the call is not allowed in its state (nothing changes). */
 #define ENTER(call, allowed)                                                                      \
     Instance *c = (Instance *)component;                                                          \
-    if (c == NULL) return fmi2Error;                                                              \
+    if (!handle_known(&instances, c)) return fmi2Error;                                           \
     if (!(c->state & (allowed))) return refuse(c, "%s is not allowed in state %s", #call, state_name(c->state));
 
 /* ------------------------------------------------------------------ FMI API */
@@ -96,7 +98,8 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     if (inner == NULL) goto done; /* the bridge logged why */
     c = calloc(1, sizeof(Instance));
     if (c != NULL && functions) c->callbacks = *functions;
-    if (c == NULL || core_init(c, &FMI2, functions_of_bridge, inner, name, INSTANTIATED, resources) != 0) {
+    if (c == NULL || core_init(c, &FMI2, functions_of_bridge, inner, name, INSTANTIATED, resources) != 0
+        || handle_add(&instances, c, NULL) != 0) {
         functions_of_bridge->freeInstance(inner);
         if (c) core_free(c);
         free(c);
@@ -112,7 +115,8 @@ done:
 void fmi2FreeInstance(fmi2Component component)
 {
     Instance *c = (Instance *)component;
-    if (c == NULL) return;
+    if (!handle_remove(&instances, c)) return; /* NULL, not this FMU's, or freed already: nothing to do */
+    core_free_states(c);
     c->bridge->freeInstance(c->inner);
     core_free(c);
     free(c);
@@ -168,8 +172,12 @@ fmi2Status fmi2Reset(fmi2Component component)
 
 /* ---- values */
 
-/* `name`: the entry point, a string */
+/* `name`: the entry point, a string.  More values than the FMU has variables is refused before the
+ * arrays are read (an nvr of 2^40 would otherwise reach the slave as a list of that size). */
 #define ARRAYS(name, vr, nvr, value)                                                                   \
+    if ((nvr) > c->variable_count)                                                                     \
+        return refuse(c, "%s: nvr %zu larger than the FMU's variables (%zu)", name, (size_t)(nvr),      \
+                      c->variable_count);                                                              \
     if ((nvr) > 0 && ((vr) == NULL || (value) == NULL))                                                \
         return refuse(c, "%s: NULL value references or values for %zu variables", name, (size_t)(nvr));
 
@@ -215,7 +223,7 @@ fmi2Status fmi2SetFMUstate(fmi2Component component, fmi2FMUstate state)
 fmi2Status fmi2FreeFMUstate(fmi2Component component, fmi2FMUstate *state)
 {
     ENTER(fmi2FreeFMUstate, ANY_STATE)
-    return core_free_state(c, state);
+    return core_free_state(c, "fmi2FreeFMUstate", state);
 }
 
 fmi2Status fmi2SerializedFMUstateSize(fmi2Component component, fmi2FMUstate state, size_t *size)

@@ -19,8 +19,10 @@
 #define OBSFMU_LOADER_COMMON_H
 
 #include <dlfcn.h>
+#include <link.h>
 #include <pthread.h>
 #include <stdarg.h>
+#include <stdatomic.h>
 #include <stdint.h>
 #include <sys/stat.h>
 
@@ -31,6 +33,144 @@
 
 static double magnitude(double x) { return x < 0 ? -x : x; }
 static int finite(double x) { return x == x && magnitude(x) <= 1.7976931348623157e308; }
+
+/* ------------------------------------------------------------------ handles: checked, not trusted */
+
+/* The instances and FMU states this loader issued and has not freed yet.  Every call looks its instance
+ * (and FMU state) up here before using it: a pointer the FMU did not issue, or one already freed, is
+ * refused without being dereferenced (docs/portability.md, "Handles").  An open-addressing hash set of
+ * pointers: lookups take no lock (atomic loads: one hash, usually one probe); adding and removing take
+ * the set's mutex.  A table that fills up with removed slots is replaced by a fresh one; the old table
+ * is kept until the loader is unloaded, as a concurrent lookup may still be reading it. */
+#define VACANT ((void *)0)
+#define REMOVED ((void *)1)
+
+typedef struct HandleTable {
+    size_t mask;                  /* capacity - 1 (a power of two) */
+    struct HandleTable *retired;  /* the table this one replaced */
+    struct {
+        _Atomic(void *) key;
+        void *owner;              /* FMU states: the instance that issued it */
+    } slot[];
+} HandleTable;
+
+typedef struct {
+    _Atomic(HandleTable *) table;
+    pthread_mutex_t lock;
+    size_t filled, live;          /* slots not vacant (live or removed); live keys */
+} Handles;
+
+static Handles instances = {NULL, PTHREAD_MUTEX_INITIALIZER, 0, 0};
+static Handles states = {NULL, PTHREAD_MUTEX_INITIALIZER, 0, 0};
+
+static size_t handle_hash(const void *key) { return (size_t)(((uintptr_t)key * 0x9E3779B97F4A7C15ull) >> 29); }
+
+/* The slot of `key` in `t`, or the first vacant slot of its probe sequence (NULL: the table is full). */
+static size_t handle_probe(HandleTable *t, const void *key, int *found)
+{
+    size_t i = handle_hash(key) & t->mask;
+    for (size_t n = 0; n <= t->mask; n++, i = (i + 1) & t->mask) {
+        void *k = atomic_load_explicit(&t->slot[i].key, memory_order_acquire);
+        if (k == key || k == VACANT) {
+            *found = k == key;
+            return i;
+        }
+    }
+    *found = 0;
+    return SIZE_MAX;
+}
+
+/* 1 if `key` was issued and not freed (no lock: this is on every call's path). */
+static inline int handle_known(Handles *h, const void *key)
+{
+    HandleTable *t = atomic_load_explicit(&h->table, memory_order_acquire);
+    int found = 0;
+    if (t != NULL && (uintptr_t)key > 1) handle_probe(t, key, &found);
+    return found;
+}
+
+/* Add `key` (issued by `owner`); 0 on success, -1 out of memory. */
+static int handle_add(Handles *h, void *key, void *owner)
+{
+    pthread_mutex_lock(&h->lock);
+    HandleTable *t = atomic_load_explicit(&h->table, memory_order_relaxed);
+    if (t == NULL || 2 * (h->filled + 1) > t->mask + 1) { /* a fresh table, at most a quarter full */
+        size_t capacity = 16;
+        while (capacity < 4 * (h->live + 1)) capacity *= 2;
+        HandleTable *fresh = calloc(1, sizeof(HandleTable) + capacity * sizeof fresh->slot[0]);
+        if (fresh == NULL) {
+            pthread_mutex_unlock(&h->lock);
+            return -1;
+        }
+        fresh->mask = capacity - 1;
+        fresh->retired = t;
+        for (size_t i = 0; t && i <= t->mask; i++) {
+            void *k = atomic_load_explicit(&t->slot[i].key, memory_order_relaxed);
+            int found;
+            if (k == VACANT || k == REMOVED) continue;
+            size_t j = handle_probe(fresh, k, &found);
+            fresh->slot[j].owner = t->slot[i].owner;
+            atomic_store_explicit(&fresh->slot[j].key, k, memory_order_relaxed);
+        }
+        atomic_store_explicit(&h->table, fresh, memory_order_release);
+        h->filled = h->live;
+        t = fresh;
+    }
+    size_t i = handle_hash(key) & t->mask;   /* the first removed or vacant slot */
+    while (1) {
+        void *k = atomic_load_explicit(&t->slot[i].key, memory_order_relaxed);
+        if (k == VACANT || k == REMOVED) {
+            h->filled += k == VACANT;
+            break;
+        }
+        i = (i + 1) & t->mask;
+    }
+    t->slot[i].owner = owner;
+    atomic_store_explicit(&t->slot[i].key, key, memory_order_release);
+    h->live++;
+    pthread_mutex_unlock(&h->lock);
+    return 0;
+}
+
+/* Remove `key`; 1 if it was there. */
+static int handle_remove(Handles *h, const void *key)
+{
+    pthread_mutex_lock(&h->lock);
+    HandleTable *t = atomic_load_explicit(&h->table, memory_order_relaxed);
+    int found = 0;
+    size_t i = t && (uintptr_t)key > 1 ? handle_probe(t, key, &found) : 0;
+    if (found) {
+        atomic_store_explicit(&t->slot[i].key, REMOVED, memory_order_release);
+        h->live--;
+    }
+    pthread_mutex_unlock(&h->lock);
+    return found;
+}
+
+/* Remove one key issued by `owner` and return it (NULL: none left). */
+static void *handle_take_owned(Handles *h, const void *owner)
+{
+    void *taken = NULL;
+    pthread_mutex_lock(&h->lock);
+    HandleTable *t = atomic_load_explicit(&h->table, memory_order_relaxed);
+    for (size_t i = 0; t && i <= t->mask && taken == NULL; i++) {
+        void *k = atomic_load_explicit(&t->slot[i].key, memory_order_relaxed);
+        if (k == VACANT || k == REMOVED || t->slot[i].owner != owner) continue;
+        atomic_store_explicit(&t->slot[i].key, REMOVED, memory_order_release);
+        h->live--;
+        taken = k;
+    }
+    pthread_mutex_unlock(&h->lock);
+    return taken;
+}
+
+static void handles_release(Handles *h)
+{
+    for (HandleTable *t = atomic_load(&h->table), *next; t != NULL; t = next) {
+        next = t->retired;
+        free(t);
+    }
+}
 
 /* ------------------------------------------------------------------ finding Python */
 
@@ -167,12 +307,69 @@ static void *load_python(const char *record, char *program, int *must_start, cha
     return python;
 }
 
+/* ------------------------------------------------------------------ one Python start per process */
+
+/* Every obsfmu loader (FMI 2.0 and 3.0, of any FMU) exports this mutex; the one of the loader loaded
+ * FIRST in the process guards finding and starting Python for all of them, so two FMUs instantiated at
+ * once from two threads never both start an interpreter (docs/portability.md, "One Python start per
+ * process").  Found in the list of loaded objects (dl_iterate_phdr: in load order), pinned
+ * (RTLD_NODELETE) so that it stays while any loader may still use it. */
+#define GUARD "obsfmu_python_start_guard_1"
+__attribute__((visibility("default"))) pthread_mutex_t obsfmu_python_start_guard_1 = PTHREAD_MUTEX_INITIALIZER;
+
+typedef struct {
+    char **names;
+    size_t count, capacity;
+} Loaded;
+
+static int note_loaded(struct dl_phdr_info *info, size_t size, void *data)
+{
+    (void)size;
+    Loaded *loaded = data;
+    if (info->dlpi_name == NULL || info->dlpi_name[0] == '\0') return 0; /* the program itself */
+    if (loaded->count == loaded->capacity) {
+        size_t capacity = loaded->capacity ? 2 * loaded->capacity : 64;
+        char **grown = realloc(loaded->names, capacity * sizeof(char *));
+        if (grown == NULL) return 1;
+        loaded->names = grown;
+        loaded->capacity = capacity;
+    }
+    size_t length = strlen(info->dlpi_name) + 1;
+    char *name = malloc(length);
+    if (name == NULL) return 1;
+    memcpy(name, info->dlpi_name, length);
+    loaded->names[loaded->count++] = name;
+    return 0;
+}
+
+/* The guard of the first loaded obsfmu loader (this one's if none is found: no worse than one per loader). */
+static pthread_mutex_t *process_guard(void)
+{
+    Loaded loaded = {NULL, 0, 0};
+    pthread_mutex_t *guard = NULL;
+    dl_iterate_phdr(note_loaded, &loaded);   /* names first: no dlopen while the list is locked */
+    for (size_t i = 0; i < loaded.count && guard == NULL; i++) {
+        void *object = dlopen(loaded.names[i], RTLD_LAZY | RTLD_NOLOAD);
+        guard = object ? (pthread_mutex_t *)dlsym(object, GUARD) : NULL;
+        if (guard != NULL) dlopen(loaded.names[i], RTLD_LAZY | RTLD_NOLOAD | RTLD_NODELETE); /* pinned */
+        if (object != NULL) dlclose(object);
+    }
+    for (size_t i = 0; i < loaded.count; i++) free(loaded.names[i]);
+    free(loaded.names);
+    return guard ? guard : &obsfmu_python_start_guard_1;
+}
+
 /* The bridge of this FMU, with a Python to run it; NULL and a message saying what is missing. */
 static const ObsfmuBridge *get_bridge(const char *resources, const char *record, char *message, size_t size)
 {
     pthread_mutex_lock(&lock);
     if (bridge == NULL && start_failure[0]) snprintf(message, size, "%s", start_failure);
-    if (bridge != NULL || start_failure[0]) goto done;
+    if (bridge != NULL || start_failure[0]) {
+        pthread_mutex_unlock(&lock);
+        return bridge;
+    }
+    pthread_mutex_t *guard = process_guard();
+    pthread_mutex_lock(guard);   /* held from "does Python run?" to "it runs" */
 
     char version[32], program[PATH_SIZE] = "", name[PATH_SIZE], path[2 * PATH_SIZE];
     obsfmu_record_value(record, "python_version", version, sizeof version);
@@ -210,6 +407,7 @@ static const ObsfmuBridge *get_bridge(const char *resources, const char *record,
     bridge_library = library;
     bridge = table();
 done:
+    pthread_mutex_unlock(guard);
     pthread_mutex_unlock(&lock);
     return bridge;
 }
@@ -217,6 +415,8 @@ done:
 __attribute__((destructor)) static void unload(void)
 {
     if (bridge_library) dlclose(bridge_library);
+    handles_release(&instances);
+    handles_release(&states);
 }
 
 /* ------------------------------------------------------------------ the core of an instance */
@@ -249,6 +449,7 @@ typedef struct {
     char *name;
     Start *starts;                /* applied after instantiation and after every reset */
     size_t start_count;
+    size_t variable_count;        /* the slave's scalar variables: a bound for nvr */
 } Core;
 
 static void say(const fmi2CallbackFunctions *callbacks, const char *name, fmi2Status status, const char *format, ...)
@@ -319,19 +520,43 @@ static fmi2Status core_machine(Core *c, const char *call, void *state, unsigned 
     return status;
 }
 
+/* fmi2Error after a message unless `state` is an FMU state this FMU issued and has not freed. */
+#define KNOWN_STATE(c, call, state)                                                                         \
+    if ((state) == NULL) return refuse(c, "%s: FMUState is NULL", call);                                   \
+    if (!handle_known(&states, (state)))                                                                    \
+        return refuse(c, "%s: FMUState %p is not a state of this FMU (another FMU's, a foreign pointer, or "   \
+                      "freed already): nothing done", call, (void *)(state));
+
+/* A state the bridge just made: registered, or freed again when it cannot be. */
+static fmi2Status issued(Core *c, const char *call, void **state)
+{
+    if (handle_add(&states, *state, c) == 0) return fmi2OK;
+    c->bridge->freeFMUstate(c->inner, state);
+    return refuse(c, "%s: out of memory", call);
+}
+
 static fmi2Status core_get_state(Core *c, const char *call, void **state)
 {
     if (state == NULL) return refuse(c, "%s: FMUState is NULL", call);
+    void *old = *state;
+    if (old != NULL && !handle_known(&states, old))
+        return refuse(c, "%s: *FMUState is %p, neither NULL (a new state) nor a state of this FMU to update: set it "
+                      "to NULL first", call, old);
     ObsfmuMachine machine = {c->version->fmi, "", 0.0, 0};
     snprintf(machine.state, sizeof machine.state, "%s", c->version->state_name(c->state));
-    return after(c, c->bridge->getFMUstate(c->inner, &machine, state));
+    fmi2Status status = c->bridge->getFMUstate(c->inner, &machine, state);
+    if (*state != old) {          /* a new state (an updated one replaces the old object) */
+        if (old != NULL) handle_remove(&states, old);
+        if (*state != NULL && issued(c, call, state) != fmi2OK) return fmi2Error;
+    }
+    return after(c, status);
 }
 
 static fmi2Status core_set_state(Core *c, const char *call, void *state)
 {
     unsigned bit;
     double time;
-    if (state == NULL) return refuse(c, "%s: FMUState is NULL", call);
+    KNOWN_STATE(c, call, state)
     fmi2Status status = core_machine(c, call, state, &bit, &time);
     if (status >= fmi2Error) return status;
     status = c->bridge->setFMUstate(c->inner, state);
@@ -342,29 +567,48 @@ static fmi2Status core_set_state(Core *c, const char *call, void *state)
     return after(c, status);
 }
 
-static fmi2Status core_free_state(Core *c, void **state)
+static fmi2Status core_free_state(Core *c, const char *call, void **state)
 {
-    if (state == NULL || *state == NULL) return fmi2OK;
+    if (state == NULL) return fmi2OK;
+    if (handle_known(&states, state))  /* fmusim 0.0.39 does this: free(c, s) instead of free(c, &s) */
+        return refuse(c, "%s: given the FMU state itself instead of its address (call %s(instance, &state)): "
+                      "nothing freed", call, call);
+    if (*state == NULL) return fmi2OK;
+    if (!handle_remove(&states, *state))
+        return refuse(c, "%s: *FMUState %p is not a state of this FMU (another FMU's, a foreign pointer, or "
+                      "freed already): nothing freed", call, *state);
     return after(c, c->bridge->freeFMUstate(c->inner, state));
+}
+
+/* The states an instance issued and the importer did not free: freed with the instance (FMI: freeing
+ * an instance frees everything allocated for it). */
+static void core_free_states(Core *c)
+{
+    void *state;
+    while ((state = handle_take_owned(&states, c)) != NULL) c->bridge->freeFMUstate(c->inner, &state);
 }
 
 static fmi2Status core_serialized_size(Core *c, const char *call, void *state, size_t *size)
 {
-    if (state == NULL || size == NULL) return refuse(c, "%s: NULL argument", call);
+    KNOWN_STATE(c, call, state)
+    if (size == NULL) return refuse(c, "%s: NULL argument", call);
     return after(c, c->bridge->serializedFMUstateSize(c->inner, state, size));
 }
 
 static fmi2Status core_serialize(Core *c, const char *call, void *state, fmi2Byte buffer[], size_t size)
 {
     size_t needed = 0;
-    if (state == NULL || buffer == NULL) return refuse(c, "%s: NULL argument", call);
+    KNOWN_STATE(c, call, state)
+    if (buffer == NULL) return refuse(c, "%s: NULL argument", call);
     fmi2Status status = c->bridge->serializedFMUstateSize(c->inner, state, &needed);
     if (status >= fmi2Error) return after(c, status);
     if (size < needed) return refuse(c, "%s: buffer of %zu bytes, %zu needed", call, size, needed);
     return after(c, c->bridge->serializeFMUstate(c->inner, state, buffer, size));
 }
 
-/* The slave checks the bytes (format, identity, checksum, its own fields); then the loader its fields. */
+/* The slave checks the bytes (format, identity, checksum, its own fields); then the loader its fields.
+ * *state: a state of this FMU is overwritten (freed); anything else is not looked at (the standard
+ * says the call constructs a new state, so an importer may pass an uninitialised variable). */
 static fmi2Status core_deserialize(Core *c, const char *call, const fmi2Byte bytes[], size_t size, void **state)
 {
     unsigned bit;
@@ -378,7 +622,8 @@ static fmi2Status core_deserialize(Core *c, const char *call, const fmi2Byte byt
         c->bridge->freeFMUstate(c->inner, &read);
         return checked;
     }
-    if (*state != NULL) c->bridge->freeFMUstate(c->inner, state); /* FMI: an existing state is overwritten */
+    if (issued(c, call, &read) != fmi2OK) return fmi2Error;
+    if (*state != NULL && handle_remove(&states, *state)) c->bridge->freeFMUstate(c->inner, state);
     *state = read;
     return status > checked ? status : checked;
 }
@@ -473,6 +718,7 @@ static int core_init(Core *c, const Version *version, const ObsfmuBridge *bridge
     c->inner = inner;
     c->state = state;
     c->time = 0.0;
+    c->variable_count = bridge->variableCount(inner);
     c->name = malloc(strlen(name) + 1);
     if (c->name == NULL) return -1;
     strcpy(c->name, name);

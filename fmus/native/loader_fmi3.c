@@ -28,7 +28,7 @@
  *      (FMI 3.0: "if loggingOn == fmi3False ... logMessage is not called"), except the reason of a
  *      failed instantiation.
  */
-#define _GNU_SOURCE /* getline */
+#define _GNU_SOURCE /* getline, dl_iterate_phdr */
 #include "fmi3Functions.h"
 #include "loader_common.h"
 
@@ -207,10 +207,11 @@ static void relay(fmi2ComponentEnvironment environment, fmi2String name, fmi2Sta
 
 #define REFUSE(c, ...) ((fmi3Status)refuse(&(c)->core, __VA_ARGS__))
 
-/* The instance, or fmi3Error when the call is not allowed in its state (nothing changes). */
+/* The instance, or fmi3Error when it is not one this FMU issued and has not freed (no logger is known
+ * then: nothing is logged), or when the call is not allowed in its state (nothing changes). */
 #define ENTER(call, allowed)                                                                           \
     Instance *c = (Instance *)instance;                                                                \
-    if (c == NULL) return fmi3Error;                                                                   \
+    if (!handle_known(&instances, c)) return fmi3Error;                                                \
     if (!(c->core.state & (allowed)))                                                                  \
         return REFUSE(c, "%s is not allowed in state %s", #call, state_name(c->core.state));
 
@@ -288,7 +289,8 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
     fmi2Component inner = functions_of_bridge->instantiate(name, fmi2CoSimulation, instantiationToken, resourcePath,
                                                            &c->core.callbacks, visible, loggingOn);
     if (inner == NULL) goto failed; /* the bridge logged why */
-    if (core_init(&c->core, &FMI3, functions_of_bridge, inner, name, INSTANTIATED, resources) != 0) {
+    if (core_init(&c->core, &FMI3, functions_of_bridge, inner, name, INSTANTIATED, resources) != 0
+        || handle_add(&instances, c, NULL) != 0) {
         functions_of_bridge->freeInstance(inner);
         goto failed;
     }
@@ -331,12 +333,14 @@ fmi3Instance fmi3InstantiateScheduledExecution(fmi3String instanceName, fmi3Stri
 void fmi3FreeInstance(fmi3Instance instance)
 {
     Instance *c = (Instance *)instance;
-    if (c == NULL) return;
+    if (!handle_known(&instances, c)) return; /* NULL, not this FMU's, or freed already: nothing to do */
     if (c->core.state == INTERMEDIATE_UPDATE_MODE) { /* from inside its own fmi3DoStep: refused */
         say(&c->core.callbacks, c->core.name, fmi2Error,
             "fmi3FreeInstance is not allowed in state intermediateUpdateMode (inside fmi3DoStep)");
         return;
     }
+    handle_remove(&instances, c);
+    core_free_states(&c->core);
     c->core.bridge->freeInstance(c->core.inner);
     free_instance(c);
 }
@@ -401,8 +405,10 @@ static const char *type_name(char type) { return type == 'F' ? "Float64" : type 
 static fmi3Status resolve(Instance *c, const char *call, const fmi3ValueReference vr[], size_t nvr, char type,
                           size_t nValues, int setting, size_t *total, int *has_time)
 {
-    size_t n = 0;
+    size_t n = 0, scalars = 0; /* values; the slave's scalars among them (all but `time`) */
     *has_time = 0;
+    if (nvr > c->variable_count) /* before vr[] is read: an nvr of 2^40 is not an array of that length */
+        return REFUSE(c, "%s: nvr %zu larger than the FMU's variables (%zu)", call, nvr, c->variable_count);
     for (size_t i = 0; i < nvr; i++) {
         if (vr[i] >= c->variable_count)
             return REFUSE(c, "%s: value reference %u does not exist", call, vr[i]);
@@ -427,14 +433,16 @@ static fmi3Status resolve(Instance *c, const char *call, const fmi3ValueReferenc
             n += 1;
             continue;
         }
-        if (n + v->count <= c->scalar_count) memcpy(c->scratch + n, v->scalars, v->count * sizeof(fmi2ValueReference));
+        if (scalars + v->count <= c->scalar_count)
+            memcpy(c->scratch + scalars, v->scalars, v->count * sizeof(fmi2ValueReference));
         n += v->count;
+        scalars += v->count;
     }
     if (n != nValues)
         return REFUSE(c, "%s: nValues is %zu, but the %zu value references hold %zu values", call, nValues, nvr, n);
-    if (n > c->scalar_count) /* a variable listed twice or more */
-        return REFUSE(c, "%s: %zu values requested, more than the FMU's %zu: list each variable once", call, n,
-                      c->scalar_count);
+    if (scalars > c->scalar_count) /* a variable listed twice or more (`time` is not one of the slave's) */
+        return REFUSE(c, "%s: %zu values requested, more than the FMU's %zu: list each variable once", call,
+                      scalars + *has_time, c->scalar_count + 1);
     *total = n;
     return fmi3OK;
 }
@@ -577,7 +585,7 @@ fmi3Status fmi3SetFMUState(fmi3Instance instance, fmi3FMUState state)
 fmi3Status fmi3FreeFMUState(fmi3Instance instance, fmi3FMUState *state)
 {
     ENTER(fmi3FreeFMUState, STATE_SETTABLE)
-    return (fmi3Status)core_free_state(&c->core, state);
+    return (fmi3Status)core_free_state(&c->core, "fmi3FreeFMUState", state);
 }
 
 fmi3Status fmi3SerializedFMUStateSize(fmi3Instance instance, fmi3FMUState state, size_t *size)

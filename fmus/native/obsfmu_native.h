@@ -90,6 +90,8 @@ typedef struct {
                                 size_t nout, fmi2Real out[], int *stepped);
     /* fmi2GetRealOutputDerivatives: first derivatives of outputs (FMUs with maxOutputDerivativeOrder = 1) */
     fmi2GetRealOutputDerivativesTYPE *getRealOutputDerivatives;
+    /* the number of the slave's scalar variables (its value references 0 .. n-1) */
+    size_t (*variableCount)(fmi2Component c);
 } ObsfmuBridge;
 
 typedef const ObsfmuBridge *ObsfmuBridgeFunction(void);

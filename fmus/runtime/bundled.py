@@ -1,7 +1,7 @@
 """The names of project modules inside the FMU that runs this code (the run-time half of :mod:`fmus.bundle`).
 
 The builder relocates an FMU's code under ``_obsfmu_<hash>`` (:mod:`fmus.bundle`).  The two places
-that import project modules by name -- :func:`fmus.runtime.callables.resolve` (``"plants.paper001:f_sin"``)
+that import project modules by name -- :func:`fmus.runtime.callables.resolve` (``"plants.ltv:f_sin"``)
 and :func:`fmus.runtime.kinds.create_block` (``kind_module``) -- map the name onto the FMU's own
 package with :func:`local_name`.  Unrelocated (a checkout or an installed obsfmu) :data:`PACKAGE` is
 ``""`` and names stay as they are.
@@ -21,7 +21,7 @@ NAMES = "BUNDLED"
 
 
 def local_name(module: str) -> str:
-    """The name under which ``module`` (e.g. ``"plants.paper001"``) is imported here."""
+    """The name under which ``module`` (e.g. ``"plants.ltv"``) is imported here."""
     if PACKAGE and module.split(".")[0] in getattr(sys.modules.get(PACKAGE), NAMES, ()):
         return f"{PACKAGE}.{module}"
     return module

@@ -7,7 +7,7 @@ reference ``"module:function"`` and the builder bundles the file into the
 FMU (``build_fmu(..., extra_modules=[path])``).  At run time
 :func:`resolve` imports the module and looks the name up -- the string is
 checked against a strict pattern and is never evaluated.  Inside an FMU the bundled modules
-run relocated (:mod:`fmus.runtime.bundled`): ``"plants.paper001:f_sin"`` then names the FMU's own copy.
+run relocated (:mod:`fmus.runtime.bundled`): ``"plants.ltv:f_sin"`` then names the FMU's own copy.
 """
 
 from __future__ import annotations

@@ -29,11 +29,11 @@ __all__ = ["Port", "Parameter", "FmuDefinition", "element_names", "element_unit"
 
 Unit = str | list[str] | None  #: one unit for every element, or one per element
 
-_IDENTIFIER = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+_IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
 
 def valid_identifier(name: str) -> bool:
-    return bool(_IDENTIFIER.match(name))
+    return bool(_IDENTIFIER.fullmatch(name))  # not match + "$": "$" accepts a trailing newline
 
 
 def element_unit(unit: Unit, index: int) -> str | None:

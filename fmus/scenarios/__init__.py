@@ -18,6 +18,7 @@ import zipfile
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import fmpy
 from fmpy import read_model_description
@@ -28,6 +29,9 @@ from ..fmi3.elements import scalar_variables
 from ..runtime.definition import FmuDefinition
 from ..master import Component, Connection, Recorder, Session, SimulationError, System
 from ..result import Result, RunInfo
+
+if TYPE_CHECKING:
+    from ..campaign.measures import Measure
 
 __all__ = ["Scenario", "Summary", "SCENARIOS", "get", "ensure_fmus", "ensure_all", "run", "run_info", "parse_overrides",
            "system", "changed_parameters"]
@@ -73,10 +77,16 @@ class Scenario:
     ramp: int = 0
     #: what the paper claims for this example, in our words and numbers (for ``obsfmu report``)
     claim: str = ""
+    #: what ``obsfmu sweep`` measures of a sample (the scenario's ``measures.py``), or None: give the metrics
+    measure: Measure | None = None
 
 
 def _registry() -> dict[str, Scenario]:
-    """Every sub-package of this package that defines ``SCENARIO`` (or ``SCENARIOS``)."""
+    """Every sub-package of this package that defines ``SCENARIO`` (or ``SCENARIOS``).
+
+    A sub-package without either holds what several scenarios share (``ltv_common``,
+    ``state_affine_common``) and is no scenario.
+    """
     import importlib
     import pkgutil
 

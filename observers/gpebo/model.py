@@ -31,7 +31,7 @@ known ``n x N`` matrix
 
 which is what the GPEBO filters of Statement 1 integrate
 (:mod:`observers.gpebo.filters`).  :class:`GeneratorModel` holds this known
-structure; the plant (:mod:`plants.paper000`) and the observer share it.
+structure; the plant (:mod:`plants.gpebo`) and the observer share it.
 """
 
 from __future__ import annotations

@@ -88,7 +88,7 @@ class SettlingDetector:
         elif t - self.since >= self.window:
             self.status, self.time = SETTLED, t
             return
-        if t - self.start >= self.timeout:
+        if t - self.start >= self.timeout - 1e-9 * max(1.0, abs(t)):  # a host summing t += h lands just below
             self.status, self.time = TIMED_OUT, t
 
     def _track_average(self, t: float, estimate: np.ndarray) -> None:

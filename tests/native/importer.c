@@ -27,13 +27,21 @@
  *                                   a fresh instance of NAME; the FMI calls CALL... (see call())
  *                                   with IN a real input, OUT an output, MODE an Integer parameter;
  *                                   prints "call ID CALL STATUS [value]" per call
- *   bench NAME IN OUT N             times N calls each of getReal, getRealStatus and doStep
+ *   bench NAME IN OUT N             times N calls each of getReal, getRealStatus and doStep, and the same
+ *                                   loader-only call on a pointer the FMU never issued (the handle check)
+ *   abuse ID NAME CASE VR...        FMI 2.0 or 3.0: a fresh instance in step mode, then the call sequence CASE
+ *                                   that breaks the rules on handles or sizes (see abuse()), then a step that
+ *                                   must work; prints "abuse ID WHAT STATUS" per call
+ *   parallel NAME NAME              instantiate the two FMUs at once from two threads (both the first
+ *                                   instantiations of the process when nothing ran before), step, free
  *   clear                           forget the declarations (a next system follows; libraries stay loaded)
  *
  * Log messages of the FMUs are printed as "log INSTANCE STATUS MESSAGE".
  */
 #include <dlfcn.h>
 #include <math.h>
+#include <pthread.h>
+#include <stdint.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -51,7 +59,8 @@
     X(GetRealStatus) X(GetIntegerStatus) X(GetBooleanStatus) X(GetStringStatus) X(SetDebugLogging)
 
 #define FMI3(X) X(InstantiateCoSimulation) X(FreeInstance) X(EnterInitializationMode) X(ExitInitializationMode)     \
-    X(Terminate) X(GetFloat64) X(SetFloat64) X(GetInt32) X(SetInt32) X(DoStep)
+    X(Terminate) X(GetFloat64) X(SetFloat64) X(GetInt32) X(SetInt32) X(DoStep) X(GetFMUState) X(SetFMUState)          \
+    X(FreeFMUState) X(SerializedFMUStateSize)
 
 #define MAX 64
 
@@ -460,8 +469,180 @@ static void bench(Fmu *f, fmi2ValueReference in, fmi2ValueReference out, long n)
     begin = now();
     for (long i = 0; i < n; i++) check(f->DoStep(f->c, i * 1e-3, 1e-3, fmi2True), f, "DoStep");
     printf("bench through-bridge fmi2DoStep %.3e s/call\n", (now() - begin) / n);
+    void *foreign = calloc(1, 4096);   /* a pointer the FMU never issued: refused by the handle check alone */
+    begin = now();
+    for (long i = 0; i < n; i++) f->GetRealStatus(foreign, fmi2LastSuccessfulTime, &x);
+    printf("bench loader-only fmi2GetRealStatus-foreign %.3e s/call\n", (now() - begin) / n);
+    free(foreign);
     f->FreeInstance(f->c);
     f->c = NULL;
+}
+
+/* ------------------------------------------------------------------ abusive call sequences (handles, sizes) */
+
+/* An instance in step mode (FMI 2.0 stepComplete, FMI 3.0 stepMode); NULL dies. */
+static void *stepping(Fmu *f)
+{
+    void *c;
+    if (f->version == 3) {
+        c = f->v3.InstantiateCoSimulation(f->name, f->guid, f->resources, fmi3False, fmi3True, fmi3False, fmi3False,
+                                          NULL, 0, f, log3, NULL);
+        if (c == NULL) die("fmi3InstantiateCoSimulation failed for", f->name);
+        check((fmi2Status)f->v3.EnterInitializationMode(c, fmi3False, 0.0, 0.0, fmi3False, 0.0), f, "EnterInitializationMode");
+        check((fmi2Status)f->v3.ExitInitializationMode(c), f, "ExitInitializationMode");
+        return c;
+    }
+    if ((c = instantiate(f, f->guid)) == NULL) die("fmi2Instantiate failed for", f->name);
+    check(f->SetupExperiment(c, fmi2False, 0.0, 0.0, fmi2False, 0.0), f, "SetupExperiment");
+    check(f->EnterInitializationMode(c), f, "EnterInitializationMode");
+    check(f->ExitInitializationMode(c), f, "ExitInitializationMode");
+    return c;
+}
+
+static double abuse_time;
+
+static int step_of(Fmu *f, void *c)
+{
+    fmi2Component saved = f->c;
+    f->c = c;
+    fmi2Status s = do_step(f, abuse_time, 1e-3);
+    f->c = saved;
+    if (s <= fmi2Warning) abuse_time += 1e-3;
+    return s;
+}
+
+static int get_state(Fmu *f, void *c, void **s) { return f->version == 3 ? (int)f->v3.GetFMUState(c, s) : f->GetFMUstate(c, s); }
+static int set_state(Fmu *f, void *c, void *s) { return f->version == 3 ? (int)f->v3.SetFMUState(c, s) : f->SetFMUstate(c, s); }
+static int free_state(Fmu *f, void *c, void **s) { return f->version == 3 ? (int)f->v3.FreeFMUState(c, s) : f->FreeFMUstate(c, s); }
+static int state_size(Fmu *f, void *c, void *s, size_t *n)
+{
+    return f->version == 3 ? (int)f->v3.SerializedFMUStateSize(c, s, n) : f->SerializedFMUstateSize(c, s, n);
+}
+static void free_instance(Fmu *f, void *c) { if (f->version == 3) f->v3.FreeInstance(c); else f->FreeInstance(c); }
+static int get_real(Fmu *f, void *c, const unsigned *vr, size_t nvr, double *x, size_t nx)
+{
+    return f->version == 3 ? (int)f->v3.GetFloat64(c, vr, nvr, x, nx) : f->GetReal(c, vr, nvr, x);
+}
+
+#define SAY(what, status) (printf("abuse %s %s %d\n", id, what, (int)(status)), fflush(stdout))
+
+/* The call sequences real importers commit (docs/portability.md, "Handles"); every call is printed with
+ * its status, then a step of a valid instance of the process must still work ("abuse ID last-step 0"). */
+static void abuse(const char *id, Fmu *f, const char *name, char **vrs, int nvrs)
+{
+    unsigned char *junk = malloc(4096);           /* a pointer the FMU never issued, full of garbage */
+    memset(junk, 0xAB, 4096);
+    junk[0] = 1;                                  /* as if a reference count of 1 came first */
+    memset(junk + 1, 0, 7);
+    void *c = stepping(f), *s = NULL, *t;
+    double x[MAX];
+    unsigned vr = 0;
+    size_t n = 0, big = (size_t)1 << 40;
+    abuse_time = 0.0;
+    if (!strcmp(name, "foreign-instance")) {
+        SAY("doStep", step_of(f, junk));
+        SAY("getReal", get_real(f, junk, &vr, 1, x, 1));
+        SAY("getFMUstate", get_state(f, junk, &s));
+        free_instance(f, junk);
+    } else if (!strcmp(name, "free-twice")) {
+        free_instance(f, c);
+        free_instance(f, c);
+        c = stepping(f);
+    } else if (!strcmp(name, "use-after-free")) {
+        free_instance(f, c);
+        SAY("doStep", step_of(f, c));
+        SAY("getReal", get_real(f, c, &vr, 1, x, 1));
+        SAY("getFMUstate", get_state(f, c, &s));
+        c = stepping(f);
+    } else if (!strcmp(name, "state-after-free")) {
+        SAY("getFMUstate", get_state(f, c, &s));
+        t = s;
+        SAY("freeFMUstate", free_state(f, c, &s));
+        SAY("setFMUstate", set_state(f, c, t));
+        SAY("serializedFMUstateSize", state_size(f, c, t, &n));
+        SAY("freeFMUstate-again", free_state(f, c, &t));
+    } else if (!strcmp(name, "free-state-itself")) {   /* fmusim 0.0.39: free(c, s) instead of free(c, &s) */
+        SAY("getFMUstate", get_state(f, c, &s));
+        SAY("freeFMUstate-itself", free_state(f, c, (void **)s));
+        SAY("setFMUstate", set_state(f, c, s));
+        SAY("freeFMUstate", free_state(f, c, &s));
+    } else if (!strcmp(name, "uninitialised-state")) {
+        s = junk;
+        SAY("getFMUstate", get_state(f, c, &s));
+        SAY("unchanged", s == (void *)junk ? 0 : 3);
+    } else if (!strcmp(name, "foreign-state")) {
+        SAY("setFMUstate", set_state(f, c, junk));
+        SAY("serializedFMUstateSize", state_size(f, c, junk, &n));
+        s = junk;
+        SAY("freeFMUstate", free_state(f, c, &s));
+    } else if (!strcmp(name, "leaked-states")) {       /* states the importer never frees: freed with the instance */
+        for (int k = 0; k < 3; k++) {
+            s = NULL;
+            SAY("getFMUstate", get_state(f, c, &s));
+        }
+        free_instance(f, c);
+        c = stepping(f);
+    } else if (!strcmp(name, "huge-nvr")) {
+        SAY("getReal-2^40", get_real(f, c, &vr, big, x, big));
+        SAY("getReal-SIZE_MAX", get_real(f, c, &vr, SIZE_MAX, x, SIZE_MAX));
+        if (f->version == 3) {
+            fmi3Int32 i32[1];
+            SAY("setFloat64-2^40", f->v3.SetFloat64(c, &vr, big, x, big));
+            SAY("getInt32-SIZE_MAX", f->v3.GetInt32(c, &vr, SIZE_MAX, i32, SIZE_MAX));
+            SAY("setInt32-2^40", f->v3.SetInt32(c, &vr, big, i32, big));
+        } else {
+            fmi2Integer i32[1], order[1] = {1};
+            fmi2Boolean b[1];
+            SAY("setReal-2^40", f->SetReal(c, &vr, big, x));
+            SAY("getInteger-SIZE_MAX", f->GetInteger(c, &vr, SIZE_MAX, i32));
+            SAY("setInteger-2^40", f->SetInteger(c, &vr, big, i32));
+            SAY("getBoolean-2^40", f->GetBoolean(c, &vr, big, b));
+            SAY("setRealInputDerivatives-2^40", f->SetRealInputDerivatives(c, &vr, big, order, x));
+        }
+    } else if (!strcmp(name, "every-variable")) {      /* VR...: a whole type's variables, `time` included */
+        unsigned list[MAX];
+        size_t values = (size_t)atol(vrs[0]);
+        for (int k = 1; k < nvrs; k++) list[k - 1] = (unsigned)atol(vrs[k]);
+        double *all = calloc(values + 1, sizeof(double));
+        SAY("getFloat64-every", get_real(f, c, list, (size_t)(nvrs - 1), all, values));
+        SAY("time", all[0] == 0.0 ? 0 : 3);
+        free(all);
+    } else {
+        die("unknown abuse", name);
+    }
+    SAY("last-step", step_of(f, c));
+    free_instance(f, c);
+    free(junk);
+}
+
+/* ------------------------------------------------------------------ two first instantiations at once */
+
+static pthread_barrier_t together;
+
+static void *instantiate_at_once(void *argument)
+{
+    Fmu *f = argument;
+    pthread_barrier_wait(&together);
+    void *c = stepping(f);
+    fmi2Component saved = f->c;
+    f->c = c;
+    for (int k = 0; k < 3; k++) check(do_step(f, k * 1e-3, 1e-3), f, "DoStep");
+    f->c = saved;
+    free_instance(f, c);
+    printf("parallel %s ok\n", f->name);
+    fflush(stdout);
+    return NULL;
+}
+
+static void parallel(Fmu *a, Fmu *b)
+{
+    pthread_t threads[2];
+    pthread_barrier_init(&together, NULL, 2);
+    pthread_create(&threads[0], NULL, instantiate_at_once, a);
+    pthread_create(&threads[1], NULL, instantiate_at_once, b);
+    pthread_join(threads[0], NULL);
+    pthread_join(threads[1], NULL);
+    pthread_barrier_destroy(&together);
 }
 
 int main(int argc, char **argv)
@@ -532,6 +713,10 @@ int main(int argc, char **argv)
         } else if (!strcmp(tokens[0], "clear") && n == 1) {
             memset(fmus, 0, sizeof fmus);
             count = total_outputs = 0;
+        } else if (!strcmp(tokens[0], "abuse") && n >= 4) {
+            abuse(tokens[1], find(tokens[2]), tokens[3], tokens + 4, n - 4);
+        } else if (!strcmp(tokens[0], "parallel") && n == 3) {
+            parallel(find(tokens[1]), find(tokens[2]));
         } else if (!strcmp(tokens[0], "bench") && n == 5) {
             bench(find(tokens[1]), atol(tokens[2]), atol(tokens[3]), atol(tokens[4]));
         } else {

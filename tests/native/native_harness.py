@@ -25,7 +25,7 @@ def compile_importer(directory: Path) -> Path:
     assert compiler, "the native tests need a C compiler (cc)"
     binary = Path(directory) / "importer"
     subprocess.run([compiler, "-O2", "-Wall", "-Werror", f"-I{fmi_headers()}", "-o", str(binary), str(SOURCE),
-                    "-ldl", "-lm"], check=True, capture_output=True, text=True)
+                    "-ldl", "-lm", "-pthread"], check=True, capture_output=True, text=True)
     return binary
 
 

@@ -116,7 +116,7 @@ def test_user_modules_are_bundled_relocated_too(tmp_path):
     from fmus.runtime.kinds.gpebo import generator_plant_definition
 
     user = tmp_path / "usermodel.py"
-    user.write_text("from plants.paper000 import sine\n\n\ndef doubled(y):\n    return 2.0 * sine(y)\n")
+    user.write_text("from plants.gpebo import sine\n\n\ndef doubled(y):\n    return 2.0 * sine(y)\n")
     plain = build_fmu(generator_plant_definition("plain_plant"), tmp_path / "fmus")
     doubled = build_fmu(generator_plant_definition("user_plant", f="usermodel:doubled"), tmp_path / "fmus",
                         extra_modules=[user])

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from observers.gpebo import GeneratorModel, GpeboObserver
-from plants.paper000 import EXAMPLE, GeneratorPlant, example_model
+from plants.gpebo import EXAMPLE, GeneratorPlant, example_model
 
 from ..callables import resolve
 from ..definition import FmuDefinition, Parameter, Port
@@ -49,7 +49,7 @@ def generator_plant_definition(model_name: str, *, gamma_beta=EXAMPLE["gamma_bet
                                gamma_theta=EXAMPLE["gamma_theta"], xi_beta0=EXAMPLE["xi_beta0"],
                                xi_theta0=EXAMPLE["xi_theta0"], x0=EXAMPLE["x0"], h_beta=EXAMPLE["h_beta"],
                                H_theta=EXAMPLE["H_theta"], gamma_delta=None, xi_delta0=None, H_delta=None,
-                               Ts: float = 1.0, f: str = "plants.paper000:sine",
+                               Ts: float = 1.0, f: str = "plants.gpebo:sine",
                                description: str = "") -> FmuDefinition:
     """Plant (1)-(2) of paper 000 for any ``n`` (``len(x0)``) and generator sizes; defaults: the example.
 
@@ -92,7 +92,7 @@ def generator_plant_definition(model_name: str, *, gamma_beta=EXAMPLE["gamma_bet
 
 def gpebo_observer_definition(model_name: str, *, Ts: float = 1.0, k_gamma: float = 1e-8, k_eta: float = 1e-8,
                               gamma_hat0=(-0.5, 0.5), eta_hat0=None, x_hat0=None, restart_tol: float = 1e-11,
-                              excitation_tol: float = 1e-9, f: str = "plants.paper000:sine",
+                              excitation_tol: float = 1e-9, f: str = "plants.gpebo:sine",
                               description: str = "") -> FmuDefinition:
     """GPEBO + DREM observer of paper 000's example (``n = 2``, ``eta`` of 4 entries)."""
     model = example_model()

@@ -3,7 +3,7 @@
 The user's model functions ``A(t)``, ``L(t)``, ``f(y)`` are ``"module:function"`` references in
 the definition's ``options`` (resolved here with :func:`fmus.runtime.callables.resolve`, never
 evaluated); everything numeric is an FMU parameter.  The dimension ``n`` is fixed when the FMU
-is built; the paper's functions are in :mod:`plants.paper001`.
+is built; the paper's functions are in :mod:`plants.ltv`.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ import numpy as np
 
 from observers.checks import ParameterError
 from observers.integrators import DEFAULT_SUBSTEP_BUDGET
-from observers.ltv_adaptive import LTVAdaptiveObserver
+from observers.ltv import LTVAdaptiveObserver
 from plants.ltv import OutputNonlinearLTVPlant
 from plants.signals import SampledNoise
 

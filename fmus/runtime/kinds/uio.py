@@ -1,6 +1,6 @@
 """Kinds for paper 003: the disturbed LTV plant and the UIO + finite-time DREM observer.
 
-* ``ltv-disturbed-plant`` -- :class:`plants.paper003.DisturbedLTVPlant`: no inputs;
+* ``ltv-disturbed-plant`` -- :class:`plants.uio.DisturbedLTVPlant`: no inputs;
   outputs ``y``, ``x``, ``theta``, ``xi``, ``f``.  The disturbance (``amplitude``,
   ``omega``, ``phase``, one entry per sinusoid), ``x0``, ``xi0`` and the
   measurement noise are parameters (``--set plant.omega=2``).
@@ -18,7 +18,7 @@ import numpy as np
 from observers.checks import ParameterError
 from observers.integrators import DEFAULT_SUBSTEP_BUDGET
 from observers.uio import UIOFiniteTimeObserver, UIOSettings
-from plants.paper003 import DisturbedLTVPlant
+from plants.uio import DisturbedLTVPlant
 from plants.signals import SampledNoise
 
 from ..definition import FmuDefinition, Parameter, Port

@@ -3,7 +3,7 @@
 Three FMUs: the signal source (``u`` sampled at the communication points,
 ``t = k Ts``), the discrete plant of the paper's example (``n = 2``,
 ``x1(k+1) = x2(k) + theta1(k) sin x1(k)``, ``x2(k+1) = beta(k) u(k)``,
-``gamma_beta = -1``, ``gamma_theta = 1``; bounded, see :mod:`plants.paper000`)
+``gamma_beta = -1``, ``gamma_theta = 1``; bounded, see :mod:`plants.gpebo`)
 and the observer (:mod:`observers.gpebo`).  ``Ts = 1`` s, 40 samples.
 
 The paper's three inputs (the default is the first)::
@@ -21,27 +21,11 @@ step, with a stop time that is a whole number of samples, e.g. ``Ts = pi/2``::
     obsfmu run discrete-gpebo --step 1.5707963267948966 --stop-time 62.83185307179586 \\
         --set plant.Ts=1.5707963267948966 --set observer.Ts=1.5707963267948966
 
-Step and coupling.  The plant and the observer are discrete: the step must be
-``Ts`` (other steps are refused) and every input must be its value at the
-step start.  The summary checks the recorded plant trajectory against the
-model equations with ``u(k)`` = the recorded source value at ``t_k``
-(``plant residual``) -- a monolithic discrete loop of the same equations
-reduced to one step each.  Measured over the default 40 samples:
-
-=========================  ==============  ===============  ==============
-order, coupling            plant residual  final |x-x_hat|  excited at end
-=========================  ==============  ===============  ==============
-jacobi, linear (default)   0               2.9e-12          yes
-jacobi, hold               0               2.9e-12          yes
-gauss-seidel, linear       0               2.9e-12          yes
-gauss-seidel, hold         2.6             7.3e+01          no
-=========================  ==============  ===============  ==============
-
-Under Gauss-Seidel the source steps first; with linear coupling the master
-marks the inputs "interpolate" and the blocks take the segment's start value
-``u(t_k)``; with ``hold`` they get the value already advanced to ``t_(k+1)``.
-Jacobi is the natural order for sampled systems: every block reads the
-values at ``t_k`` whatever the coupling.
+Step and coupling.  The plant and the observer are discrete: the step must be ``Ts`` (other steps
+are refused) and every input must be its value at the step start, so the default order is Jacobi
+(every block reads the values at ``t_k`` whatever the coupling).  The summary checks the recorded
+plant trajectory against the model equations (``plant residual``); the orders and couplings
+measured against it: ``docs/paper000.md``, section 4.
 """
 
 from __future__ import annotations
@@ -57,8 +41,8 @@ from ...metrics import NOT_REACHED, time_to_stay_below
 from ...plotting import Curve, Panel, figure
 from ...result import Result
 from .. import Scenario, Summary
+from .measures import MEASURE, TOLERANCE
 
-TOLERANCE = 1e-6  #: acceptance: gamma and x to 1e-6
 
 
 def definitions():
@@ -188,4 +172,5 @@ SCENARIO = Scenario(
     plot=plot,
     not_adaptive="its plant and observer are discrete: they take steps of exactly one sample period Ts",
     claim=CLAIM,
+    measure=MEASURE,
 )

@@ -4,7 +4,7 @@ Not a scenario itself (no ``SCENARIO``).  Both scenarios have the instances ``so
 input), ``plant`` (outputs ``y``, ``x`` and its true unknown parameters ``theta``) and
 ``observer`` (outputs ``x_hat``, ``theta_hat``, ``Delta``, ``nu``), and a reference file
 ``reference.csv`` in their folder: the independent monolithic solution
-(``tests/reference/paper004.py``, Radau, rtol 1e-10) for the default settings.
+(``fmus/scenarios/state_affine_common/reference.py``, Radau, rtol 1e-10) for the default settings.
 """
 
 from __future__ import annotations
@@ -17,12 +17,12 @@ from ...metrics import format_time, time_to_stay_below
 from ...plotting import Curve, Panel, figure
 from ...result import Result
 from .. import Summary, changed_parameters
+from .measures import MEASURE, TOLERANCE
 
-__all__ = ["TOLERANCE", "NOT_ADAPTIVE", "load_reference", "errors", "summarize", "plot"]
+__all__ = ["TOLERANCE", "MEASURE", "NOT_ADAPTIVE", "load_reference", "errors", "summarize", "plot"]
 
-TOLERANCE = 1e-4   #: acceptance: theta_hat and x_hat to 1e-4
 MU = 0.98          #: the observers' default switching level (the summary reports nu < MU)
-#: why the adaptive master is refused (measured with benchmarks/issue14.py)
+#: why the adaptive master is refused (measured with benchmarks/cosimulation_costs.py)
 NOT_ADAPTIVE = ("step doubling measures the wrong error here: the finite-time DREM laws hold their regressors "
                 "over each step (first order in the step) until they switch (nu < mu) and are exact from then "
                 "on, so the error of the transient drives the step down while the final accuracy is set by "

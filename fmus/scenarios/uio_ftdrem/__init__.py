@@ -12,31 +12,11 @@ Two FMUs, stepped in this order (Gauss-Seidel): the plant (1)
 Other disturbances and initial states through the plant FMU's parameters, e.g.
 ``--set plant.amplitude=3 --set plant.omega=2 --set plant.phase=0.5 --set plant.x0[1]=0.5``.
 
-Default step and coupling, measured on the 20 s run: errors against the true values over the
-last 20 % (``x``: ``|x_hat - x| / (1 + |x|)``) and which stages were identified (the others
-stopped at ``t_identify = 10 s`` without settling); acceptance 1e-4, 1e-3, 2e-3, 1e-5:
-
-======  ============  ================  =======  =======  =======  =======  ===============
-step    order         coupling          omega    xi0      f        x        stages settled
-======  ============  ================  =======  =======  =======  =======  ===============
-2e-3    Gauss-Seidel  linear            5.1e-8   7.5e-8   3.9e-6   9.2e-7   all
-1e-3    Gauss-Seidel  linear (default)  3.3e-9   3.4e-8   5.8e-7   1.2e-7   all
-5e-4    Gauss-Seidel  linear            4.1e-10  5.0e-8   2.7e-7   2.4e-8   all
-1e-3    Gauss-Seidel  hold              2.1e-3   7.2e-4   9.9e-2   2.7e-2   stage 1 only
-5e-4    Gauss-Seidel  hold              5.2e-4   1.8e-4   2.4e-2   6.5e-3   stage 1 only
-1e-3    Jacobi        linear            3.8e-6   1.8e-6   1.8e-4   3.3e-5   1, 2, 4
-======  ============  ================  =======  =======  =======  =======  ===============
-
-Against the monolithic Radau reference of the same equations (``tests/reference/paper003.py``,
-rtol 1e-10, stored in ``reference.csv``; it finds its own stage times, 6.530, 7.030, 7.543 s),
-default step and coupling: plant state 8.5e-11 over the whole run, ``x_tilde0_hat``
-2e-13 from 0.1 s; over the last 20 %: ``omega_hat`` 3.1e-9, ``xi0_hat`` 7.3e-9, ``f_hat`` 4.3e-7,
-``x_hat`` 5.1e-7 (the co-simulation's own error against the truth, from ``y`` being a straight
-line between samples inside the observer: ``(h omega)^2/12`` relative).
-
 Default: 1e-3 s, Gauss-Seidel (plant first), linear coupling -- the observer gets ``y``
 interpolated across each step.  Holding ``y`` lags it by ``h/2`` and fails the acceptance even at
 5e-4 s; with Jacobi the observer must extrapolate ``y`` from the previous step (``x`` misses 1e-5).
+The measurements, and the agreement with the stored reference (``reference.csv``):
+``docs/paper003.md``, "Measured".
 """
 
 from __future__ import annotations
@@ -53,9 +33,10 @@ from ...metrics import format_time, time_to_stay_below
 from ...plotting import Curve, Panel, figure
 from ...result import Result
 from .. import Scenario, Summary, changed_parameters
+from .measures import MEASURE
 
 HERE = Path(__file__).parent
-#: the monolithic Radau reference, written by ``python -m tests.reference.paper003 --write``
+#: the monolithic Radau reference, written by ``python -m fmus.scenarios.uio_ftdrem.reference --write fmus/scenarios/uio_ftdrem/reference.csv``
 REFERENCE = HERE / "reference.csv"
 
 A = [[0.0, 1.0], [-2.0, 0.0]]
@@ -257,4 +238,5 @@ SCENARIO = Scenario(
                   "step-size control shrinks the step without end (0.1 s not reached in 200 s); "
                   "run it with a fixed step (the default 1e-3 s is within 4.4e-7 of the reference)"),
     claim=CLAIM,
+    measure=MEASURE,
 )

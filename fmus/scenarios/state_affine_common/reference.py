@@ -259,7 +259,7 @@ def _report(name, result, truth):
 
 if __name__ == "__main__":  # pragma: no cover - documentation numbers
     import sys
-    root = Path(__file__).resolve().parents[2] / "fmus" / "scenarios"
+    root = Path(__file__).resolve().parent.parent
     pend = run_pendulum(np.linspace(0.0, 20.0, 2001))
     _report("pendulum", pend, [PENDULUM["true"]["b"], PENDULUM["true"]["a"]])
     chem = run_chemostat(np.linspace(0.0, 30.0, 3001))

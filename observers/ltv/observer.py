@@ -32,7 +32,7 @@ Integration over a communication step
 -------------------------------------
 * Inputs: ``y`` and ``u`` arrive as :class:`~observers.block.Segment` s; inside the step they
   follow the polynomial of degree ``input_degree`` through the last communication points when
-  the master interpolates (:class:`~observers.ltv_stepping.PolynomialInputs`), the segments
+  the master interpolates (:class:`~observers.ltv.stepping.PolynomialInputs`), the segments
   themselves otherwise.
 * Filters: one linear ODE ``S' = A0(t) S + G(t)`` for ``S = [xi, W]`` (we store ``-Phi``, which
   obeys the same equation from ``-I``), RK4 sub-steps at most ``max_substep`` long over which
@@ -58,12 +58,12 @@ from typing import Mapping
 
 import numpy as np
 
-from .block import Block, Segment
-from .checks import ParameterError, as_vector, finite_signal, require_positive
-from .estimation import LeastSquaresForgetting
-from .estimation.exponential import phi1
-from .integrators import DEFAULT_SUBSTEP_BUDGET, require_budget, substep_count
-from .ltv_stepping import (SUBSTEP_POINTS, IntegralSamples, PolynomialInputs, output_function, resolved_output,
+from ..block import Block, Segment
+from ..checks import ParameterError, as_vector, finite_signal, require_positive
+from ..estimation import LeastSquaresForgetting
+from ..estimation.exponential import phi1
+from ..integrators import DEFAULT_SUBSTEP_BUDGET, require_budget, substep_count
+from .stepping import (SUBSTEP_POINTS, IntegralSamples, PolynomialInputs, output_function, resolved_output,
                            rk4_linear, substep_points, time_function)
 
 __all__ = ["LTVAdaptiveObserver"]
@@ -102,12 +102,12 @@ class LTVAdaptiveObserver(Block):
     input_degree : int
         Degree of the polynomials through the last communication points that ``y`` and ``u``
         follow inside a step when the master interpolates
-        (:class:`~observers.ltv_stepping.PolynomialInputs`; 2: parabolas).
+        (:class:`~observers.ltv.stepping.PolynomialInputs`; 2: parabolas).
     substep_budget : int
         Most RK4 sub-steps one communication step may take (a longer step is refused).
     f_correction : bool
         Resolve inside a step the fast part of ``y`` that ``m f(y)`` drives, with the estimate
-        ``C^T m_hat`` (:func:`~observers.ltv_stepping.resolved_output`): the polynomial then
+        ``C^T m_hat`` (:func:`~observers.ltv.stepping.resolved_output`): the polynomial then
         interpolates ``y - C^T m_hat int f(y)``.  For outputs that ``f(y)`` makes oscillate
         faster than the samples (paper case: 1e-3 s steps instead of 1e-4 s); False: the
         polynomial through the samples of ``y``.
@@ -216,7 +216,7 @@ class LTVAdaptiveObserver(Block):
         """``y`` at :data:`SUBSTEP_POINTS` of every sub-step, and the samples of ``int f(y)`` after the step.
 
         Without ``f_correction``: the polynomial through the samples.  With it, the fast part that
-        ``m f(y)`` drives is resolved (:func:`~observers.ltv_stepping.resolved_output`) with the
+        ``m f(y)`` drives is resolved (:func:`~observers.ltv.stepping.resolved_output`) with the
         estimate ``mu = C^T m_hat``, unless ``|mu| h > 0.5`` (a wild estimate early on: the
         polynomial alone then), which also keeps the RK4 of ``int f(y)`` stable.
         """

@@ -36,6 +36,8 @@ Run as a script to print the convergence numbers quoted in ``docs/paper001.md``.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 from scipy.integrate import solve_ivp
 
@@ -87,7 +89,7 @@ def simulate(times, k, b, m, x0, gamma=1000.0, beta=1.0, f0=0.1, M=1e12, form="F
              rtol=RTOL, atol=ATOL, u=u_of_t, noise=None, method=METHOD):
     """Solve the monolithic ODE on ``[0, times[-1]]``; values at ``times``.
 
-    ``method`` is the ``solve_ivp`` method (``benchmarks/issue14.py`` times ``LSODA``).
+    ``method`` is the ``solve_ivp`` method (``benchmarks/cosimulation_costs.py`` times ``LSODA``).
 
     ``noise`` (optional, ``t -> v``) is added to the output the observer measures,
     ``y_m = C^T x + v``; the plant itself uses the true ``y``.
@@ -187,7 +189,7 @@ def write_csv(path, case, T, grid=0.05, **options):
     header = ",".join(["t"] + [f"theta[{j}]" for j in range(1, 9)] + [f"theta_hat[{j}]" for j in range(1, 9)]
                       + ["x[1]", "x[2]", "x_hat[1]", "x_hat[2]"])
     np.savetxt(path, np.column_stack([out["t"], theta, out["theta_hat"], out["x"], out["x_hat"]]), delimiter=",",
-               fmt="%.12g", header=f"paper 001 monolithic reference (tests/reference/paper001.py), "
+               fmt="%.12g", header=f"paper 001 monolithic reference (fmus/scenarios/ltv_common/reference.py), "
                                   f"{options.get('method', METHOD)}, rtol = {options.get('rtol', RTOL):g}, "
                                   f"atol = {options.get('atol', ATOL):g}\n{header}")
 
@@ -197,9 +199,10 @@ def _main(argv):  # pragma: no cover - prints the numbers quoted in the docs, wr
     import time
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--write", metavar="DIR", help="write reference_paper.csv and reference_bounded.csv")
+    parser.add_argument("--write", action="store_true", help="write the scenarios' reference.csv (ltv_ls, ltv_ls_bounded)")
     args = parser.parse_args(argv)
-    for name, case, T in (("paper", PAPER, 15.0), ("bounded", BOUNDED, 20.0)):
+    scenarios = Path(__file__).resolve().parent.parent
+    for name, case, T, folder in (("paper", PAPER, 15.0, "ltv_ls"), ("bounded", BOUNDED, 20.0, "ltv_ls_bounded")):
         start = time.process_time()
         out = simulate(np.linspace(0.0, T, int(round(T * 100)) + 1), **case)
         cpu = time.process_time() - start
@@ -211,8 +214,7 @@ def _main(argv):  # pragma: no cover - prints the numbers quoted in the docs, wr
               f"max F {out['F_max'].max():.3g}; max |y| {np.abs(out['x'][:, 0]).max():.3g}; "
               f"{METHOD} {cpu:.1f} s CPU ({out['nfev']} evaluations)")
         if args.write:
-            from pathlib import Path
-            write_csv(Path(args.write) / f"reference_{name}.csv", case, T)
+            write_csv(scenarios / folder / "reference.csv", case, T)
 
 
 if __name__ == "__main__":

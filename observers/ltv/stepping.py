@@ -37,8 +37,8 @@ from functools import lru_cache
 
 import numpy as np
 
-from .block import MAGNITUDE_BOUND
-from .checks import ParameterError, SignalError
+from ..block import MAGNITUDE_BOUND
+from ..checks import ParameterError, SignalError
 
 __all__ = ["time_function", "output_function", "InputPolynomial", "PolynomialInputs", "rk4_linear",
            "IntegralSamples", "resolved_output", "substep_points", "SUBSTEP_POINTS"]

@@ -1,4 +1,6 @@
-"""Every target of issue 14, measured in one run, side by side with the issue's "today" figure.
+"""What a co-simulation costs, measured in one run: the FMU path against the direct loop of the same
+blocks, a whole run against a monolithic solver, start-up, builds and the main job, the adaptive master
+against a fixed step -- the targets of issue 14, side by side with the issue's "today" figure.
 
 CPU time (``time.process_time`` in this process, ``RUSAGE_CHILDREN`` for whole commands), the
 minimum of ``--repeats`` interleaved repeats (every case of a section is run once per round).
@@ -25,7 +27,7 @@ minimum of ``--repeats`` interleaved repeats (every case of a section is run onc
 5. Adaptive master at tol 1e-4 and 1e-6 vs the cheapest fixed step of the scenario's default
    coupling that reaches the same error.
 
-    .venv/bin/python benchmarks/issue14.py [--quick] [--repeats 5] [--main] [--only SECTION ...]
+    .venv/bin/python benchmarks/cosimulation_costs.py [--quick] [--repeats 5] [--main] [--only SECTION ...]
 """
 
 from __future__ import annotations
@@ -294,8 +296,8 @@ def section_per_step(args, build):
 # ---------------------------------------------------------------------------- 2. numerics
 LSODA = """
 import numpy as np
-from tests.reference import paper001 as ref
-from fmus.scenarios.ltv_ls import load_reference
+from fmus.scenarios.ltv_common import reference as ref
+from fmus.scenarios.ltv_common import load_reference
 r = load_reference("bounded")
 out = ref.simulate(r["t"], **ref.BOUNDED, form="information", method="LSODA", rtol={rtol}, atol={rtol})
 print("error", np.abs(out["theta_hat"] - r["theta_hat"]).max())

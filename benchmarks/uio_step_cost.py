@@ -7,7 +7,7 @@ adapt (0 .. 7.5 s: four FT-DREM updates per step) and after identification (7.6 
 LTI filters and the stage-4 observer only).  Also the wall time of ``obsfmu run uio-ftdrem``
 (plant + observer FMUs and the master).  Best of several repeats, measured in one run.
 
-    .venv/bin/python benchmarks/paper003.py [--repeats 3]
+    .venv/bin/python benchmarks/uio_step_cost.py [--repeats 3]
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from fmus.scenarios import ensure_fmus, get, run
 from fmus.scenarios.uio_ftdrem import A, B, B_BAR, C, DISTURBANCE, H, R, X0, XI0, XI0_FREE, XI0_KNOWN, Z0, gain
 from observers.block import Segment
 from observers.uio import UIOFiniteTimeObserver
-from plants.paper003 import DisturbedLTVPlant
+from plants.uio import DisturbedLTVPlant
 
 STEP, STOP, SPLIT = 1e-3, 20.0, 7.6
 

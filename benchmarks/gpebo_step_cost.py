@@ -9,7 +9,7 @@
 
 Times are the best of several repeats (microseconds); ratios are taken within this run.
 
-    .venv/bin/python benchmarks/paper000.py [--samples 2000] [--repeat 5]
+    .venv/bin/python benchmarks/gpebo_step_cost.py [--samples 2000] [--repeat 5]
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ from fmus.scenarios import ensure_fmus, get, run
 from observers.block import Segment
 from observers.estimation import DelayExtension, DiscreteDREM
 from observers.gpebo import GpeboObserver
-from plants.paper000 import EXAMPLE, GeneratorPlant, example_model
+from plants.gpebo import EXAMPLE, GeneratorPlant, example_model
 
 
 def signals(samples: int):

@@ -1,6 +1,6 @@
 """Per-step cost of the paper-004 observer (issue 8), measured in one run; report ratios, not seconds.
 
-    .venv/bin/python benchmarks/paper004.py [--fmu]
+    .venv/bin/python benchmarks/state_affine_step_cost.py [--fmu]
 
 For each example (pendulum: Statement 2, N = 6; chemostat: Statement 1, N = 5) it times, per
 communication step at the scenario's default step:

@@ -3,7 +3,7 @@
 For each case (``bounded``: 20 s, ``paper``: 15 s) and communication step, the three FMUs
 (source, plant, observer) are co-simulated with the scenario's defaults otherwise
 (Gauss-Seidel, linear coupling) and timed; the independent monolithic solve_ivp solution of
-plant + filters + estimator (``tests/reference/paper001.py``, Radau, rtol = atol = 1e-10,
+plant + filters + estimator (``fmus/scenarios/ltv_common/reference.py``, Radau, rtol = atol = 1e-10,
 information form; for ``bounded`` also the paper's stiff ``F`` form) is timed on the same
 horizon.  Printed: wall times, their ratio (co-simulation / Radau), and the largest deviation
 of ``theta_hat`` from the reference on a 0.01 s grid -- so speed is never read without accuracy.
@@ -14,13 +14,12 @@ accurate for the bounded case; the paper case's fast output ``y`` needs the obse
 ``f_correction`` at 1e-3 s (its default) and 1e-4 s without it (see docs/paper001.md).  FMUs are
 built once (not timed).
 
-    .venv/bin/python benchmarks/paper001.py [--cases bounded paper] [--paper-steps 1e-3 1e-4]
+    .venv/bin/python benchmarks/ltv_wall_time.py [--cases bounded paper] [--paper-steps 1e-3 1e-4]
 """
 
 from __future__ import annotations
 
 import argparse
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -28,9 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from fmus.scenarios import ensure_fmus, get, run
-
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
-from reference import paper001 as ref  # noqa: E402  (the independent reference lives with the tests)
+from fmus.scenarios.ltv_common import reference as ref
 
 CASES = {"bounded": ("ltv-ls-bounded", ref.BOUNDED, 20.0), "paper": ("ltv-ls", ref.PAPER, 15.0)}
 
