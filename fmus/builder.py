@@ -30,6 +30,7 @@ from xml.etree.ElementTree import tostring
 
 from . import fmi3, native
 from .bundle import package_init, relocate
+from .output import file_mode
 from .runtime.definition import FmuDefinition, valid_identifier
 
 __all__ = ["build_fmu", "is_current", "source_hash", "PROJECT_ROOT", "BUNDLED_PACKAGES", "BUNDLED_CODE"]
@@ -182,6 +183,7 @@ def build_fmu(definition: FmuDefinition, out_dir: Path | str, extra_modules=(), 
             **extra,
         }
     handle, name = tempfile.mkstemp(prefix=f".{model}.", suffix=".fmu.partial", dir=out_dir)
+    os.fchmod(handle, file_mode())      # the mode of every other result (umask), not mkstemp's 0600
     os.close(handle)
     partial = Path(name)  # unique: concurrent builds of the same FMU never write one file
     try:

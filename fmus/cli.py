@@ -286,14 +286,10 @@ def cmd_build(args) -> int:
 
     from .fmi3 import build_folder
 
-    design = None
-    if args.config:  # checked whole before anything is written
-        from .config import design_from_config, load_config
-        design = design_from_config(load_config(args.config))
     out = check_directory("--out", args.out)
-    if design:
-        paths = [build_fmu(definition, build_folder(out, args.fmi_version), fmi_version=args.fmi_version)
-                 for definition in design.definitions()]
+    if args.config:  # checked whole before anything is written
+        from .system.commands import build_from_file
+        paths = build_from_file(args.config, out, args.fmi_version)
     else:
         paths = _build_all(out, args.fmi_version)
     return 1 if _report_built(paths) else 0
@@ -318,15 +314,17 @@ def _times(args, scenario) -> dict[str, float | None]:
 
 def cmd_run(args) -> int:
     from . import scenarios
+    from .system.commands import scenario_key
 
-    scenario = scenarios.get(args.scenario)
+    key = scenario_key(args)
+    scenario = scenarios.get(key)
     times = _times(args, scenario)
     overrides = scenarios.parse_overrides(args.set or [])
     csv = check_file("--csv", args.csv) if args.csv else None
     figures = _figure_paths("--plot", args.plot) if args.plot else []
     build_dir = check_directory("--build-dir", args.build_dir, writable=False)
     with StopRequest() as stop:
-        outcome = _run_scenario(scenario.name, build_dir, stop, csv, times["output_interval"],
+        outcome = _run_scenario(key, build_dir, stop, csv, times["output_interval"],
                                 stop_time=times["stop_time"], step=times["step"], order=args.master,
                                 coupling=args.coupling, overrides=overrides, tolerance=args.tol,
                                 fmi_version=args.fmi_version)
@@ -346,8 +344,9 @@ def cmd_run(args) -> int:
 def cmd_export(args) -> int:
     from . import scenarios
     from .export import export
+    from .system.commands import scenario_key
 
-    scenario = scenarios.get(args.scenario)
+    scenario = scenarios.get(scenario_key(args))
     times = _times(args, scenario)
     out = check_directory("--out", args.out)
     build_dir = check_directory("--build-dir", args.build_dir, writable=False)
@@ -364,15 +363,15 @@ def _run_one(out: Path, build_dir: Path, name: str, stop: StopRequest, settings:
     from . import report
     from .scenarios import get
     scenario = get(name)
-    print(f"\n== {name}: {scenario.description}")
-    outcome = _run_scenario(name, build_dir, stop, out / f"{name}.csv", scenario.output_interval, "--out",
+    print(f"\n== {scenario.name}: {scenario.description}")
+    outcome = _run_scenario(name, build_dir, stop, out / f"{scenario.name}.csv", scenario.output_interval, "--out",
                             **(settings or {}))
     if outcome.result.interrupted:
         return _interrupted(outcome, name, stop)
     if outcome.summary:
         print(outcome.summary)
     report.save_run(out, scenario, outcome.result, outcome.summary, outcome.wall_time, build_dir)
-    print(f"wrote {out / name}.csv, .png, .svg, .txt, .json")
+    print(f"wrote {out / scenario.name}.csv, .png, .svg, .txt, .json")
     return 0
 
 
@@ -390,14 +389,15 @@ def _run_into(out: Path, build_dir: Path, names, stop: StopRequest, jobs: int = 
     return 0
 
 
-def _run_and_report(out: Path, build_dir: Path, names: list[str], jobs: int = 1) -> int:
-    """Run ``names`` into ``out`` (Ctrl-C stops them), then write the report of every scenario there."""
+def _run_and_report(out: Path, build_dir: Path, names: list[str], jobs: int = 1, shown=None) -> int:
+    """Run ``names`` into ``out`` (Ctrl-C stops them), then write the report of every scenario there
+    (or of the scenarios ``shown``)."""
     from . import report
     with StopRequest() as stop:
         status = _run_into(out, build_dir, names, stop, jobs)
         if status:
             return status
-        print(f"\nwrote {report.write_report(out, build_dir)}")
+        print(f"\nwrote {report.write_report(out, build_dir, shown() if shown else None)}")
     return 0
 
 
@@ -419,13 +419,20 @@ def cmd_report(args) -> int:
 
     out = check_directory("--out", args.out)
     build_dir = check_directory("--build-dir", args.build_dir, writable=False)
+    if args.config:     # the system file's run, then the report of it and of the scenarios run there before
+        from .scenarios import get
+        from .system.commands import scenario_key
+        key = scenario_key(args)
+        return _run_and_report(out, build_dir, [key], 1, lambda: [name for name in SCENARIOS if report.has_run(
+            out, name)] + [get(key).name])
     missing = [name for name in SCENARIOS if not report.has_run(out, name)]
     return _run_and_report(out, build_dir, missing, args.jobs)
 
 
 # ----------------------------------------------------------------------------- arguments
 def _add_scenario_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("scenario", metavar="SCENARIO", help="one of the scenarios listed below")
+    parser.add_argument("scenario", metavar="SCENARIO", nargs="?", help="one of the scenarios listed below")
+    _add_system_file(parser, "instead of a SCENARIO")
     parser.add_argument("--stop-time", type=_duration, metavar="T",
                         help="stop time (default: the scenario's), in its unit of time unless given: 20, 90min")
     parser.add_argument("--step", type=_duration, metavar="H",
@@ -447,10 +454,14 @@ def _add_fmi_version(parser: argparse.ArgumentParser) -> None:
                              "into <build dir>/fmi3; see docs/fmi3.md)")
 
 
-def _configure_build(parser) -> None:
+def _add_system_file(parser: argparse.ArgumentParser, what: str) -> None:
     parser.add_argument("--config", metavar="FILE.toml",
-                        help="TOML design of your own LTI plant, observer and controller (see fmus/config.py, "
-                             "examples/nomoto3.toml); without it: every scenario's FMUs")
+                        help=f"your own system file ({what}; docs/your-own-system.md, docs/system-file-reference.md)")
+
+
+def _configure_build(parser) -> None:
+    _add_system_file(parser, "its FMUs; or an older single-plant design, fmus/config.py; without it: every "
+                     "scenario's FMUs")
     parser.add_argument("--out", default=str(DEFAULT_BUILD), metavar="DIR",
                         help="directory for the FMUs (created if missing; default: build)")
     _add_fmi_version(parser)
@@ -514,6 +525,7 @@ def _configure_report(parser) -> None:
     parser.add_argument("--build-dir", default=str(DEFAULT_BUILD), metavar="DIR",
                         help="directory of the FMUs (default: build)")
     _add_jobs_argument(parser, "the scenarios without results")
+    _add_system_file(parser, "run into --out and added to the report")
 
 
 register("build", "build FMUs (every scenario's, or those of one TOML design) and validate them",
@@ -525,8 +537,15 @@ register("export", "write a scenario for another tool: SSP package or OSP system
          _configure_export, cmd_export, epilog=_scenario_list_help)
 register("all", "main job: build and validate every FMU, run every scenario, write results and report.html",
          _configure_all, cmd_all)
+register("show", "print the system file's field reference, or check a system file and print what it holds",
+         lambda parser: _system_commands().configure_show(parser), lambda args: _system_commands().show(args))
 register("report", "write report.html: every scenario, its paper, its checks and FMI facts on one page",
          _configure_report, cmd_report)
+
+
+def _system_commands():
+    from .system import commands
+    return commands
 
 
 def parser() -> argparse.ArgumentParser:

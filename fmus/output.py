@@ -31,7 +31,7 @@ import numpy as np
 from .master import Recorder
 from .result import Result
 
-__all__ = ["OutputError", "check_file", "check_directory", "partial_path", "replacing", "StreamingRecorder"]
+__all__ = ["OutputError", "check_file", "check_directory", "partial_path", "replacing", "StreamingRecorder", "file_mode"]
 
 
 class OutputError(ValueError):
@@ -81,7 +81,7 @@ def partial_path(path: Path) -> Path:
     return path.with_name(f"{path.stem}.partial{path.suffix}")
 
 
-def _file_mode() -> int:
+def file_mode() -> int:
     """Permissions of a new file under the current umask (temporary files are created 0600)."""
     umask = os.umask(0)
     os.umask(umask)
@@ -92,7 +92,7 @@ def _hidden_temporary(target: Path) -> tuple[int, Path]:
     """A temporary file beside ``target`` (same file system: renaming it is atomic), hidden, ``.tmp``:
     its descriptor (unbuffered: a failed write leaves nothing pending) and its path."""
     descriptor, name = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
-    os.fchmod(descriptor, _file_mode())
+    os.fchmod(descriptor, file_mode())
     return descriptor, Path(name)
 
 

@@ -25,7 +25,8 @@ def configure(sweep: argparse.ArgumentParser) -> None:
     from ..master import COUPLINGS, ORDERS
 
     sweep.add_argument("scenario", nargs="?", help="scenario name (obsfmu list); optional with --config")
-    sweep.add_argument("--config", metavar="FILE.toml", help="the campaign as a TOML file (docs/campaigns.md); "
+    sweep.add_argument("--config", metavar="FILE.toml", help="a system file (docs/your-own-system.md), or the "
+                       "campaign as a TOML file (docs/campaigns.md); "
                        "options given here override it")
     sweep.add_argument("--vary", action="append", metavar="INSTANCE.VAR=SPEC",
                        help="a varied parameter, e.g. plant.k[1]=-3:3:7 or 'plant.x0[1]=uniform(-1,1)' (repeatable)")
@@ -100,7 +101,12 @@ def campaign_from_args(args):
                "coupling": args.coupling, "tolerance": args.tol,
                "time_limit": args.time_limit, "time_metric": args.time_metric, "error_metric": args.error_metric,
                "build_dir": args.build_dir, "vary": _pairs(args.vary, "--vary"), "set": _pairs(args.set, "--set")}
-    if args.config:
+    from ..system.commands import holds_components
+    if args.config and holds_components(args.config):   # a system file: its scenario
+        from ..system.commands import scenario_key
+        options["scenario"] = scenario_key(args)
+        campaign = Campaign(**{k: v for k, v in options.items() if v is not None})
+    elif args.config:
         campaign = Campaign.from_toml(args.config, **options)
     elif not args.scenario:
         raise _error("sweep: give a SCENARIO (obsfmu list) or --config FILE.toml")
@@ -128,8 +134,8 @@ def cmd_sweep(args) -> int:
     from .table import summary_text
 
     campaign = campaign_from_args(args)
-    out = Path(args.out or Path("results") / f"sweep-{campaign.scenario}")
     plan = campaign.plan()
+    out = Path(args.out or Path("results") / f"sweep-{plan.scenario.name}")
     print(f"{plan.scenario.name}: {len(plan.samples)} samples, stop time {plan.settings['stop_time']:g} "
           f"{plan.scenario.time_unit}, step {plan.settings['step']:g}, {plan.settings['order']}; "
           f"results in {out}", flush=True)

@@ -107,7 +107,7 @@ def _tasks(plan: Plan, samples) -> list[Task]:
         for name, value in sample.values.items():
             instance, _, variable = name.partition(".")
             start.setdefault(instance, {})[variable] = value
-        tasks.append(Task(sample.id, plan.scenario.name, plan.fmu_set, dict(plan.settings), start,
+        tasks.append(Task(sample.id, plan.campaign.scenario, plan.fmu_set, dict(plan.settings), start,  # name or path
                           dict(sample.values), float(plan.campaign.time_limit)))
     return tasks
 

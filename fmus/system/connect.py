@@ -136,8 +136,8 @@ def check_compares(compares: list[dict], components: dict) -> list[dict]:
                                          elements(where, components, *match.group(1, 2, 3), "output")]
             sizes[key] = len(compare[key + "_columns"])
         if sizes["estimate"] != sizes["truth"]:
-            raise ParameterError(f"report.compare[{i}].truth: {sizes['truth']} entries, the estimate has "
-                                 f"{sizes['estimate']}")
+            raise ParameterError(f"report.compare[{i}].truth: {compare['truth']} has {sizes['truth']}, "
+                                 f"{compare['estimate']} has {sizes['estimate']} (compare ports of one size)")
         if compare["tolerance"] <= 0:
             raise ParameterError(f"report.compare[{i}].tolerance: must be > 0")
     return compares

@@ -19,7 +19,7 @@ from ..runtime.kinds.expression import expression_plant_definition
 from ..runtime.kinds.linear import feedback_definition, observer_definition, plant_definition
 from .schema import Context, Field, register
 
-__all__ = ["model_of"]
+__all__ = ["model_of", "matrix_text", "poles_text"]
 
 _UNITS = (
     Field("state_units", "units", "unit of the state (one, or one per state)", None, example='["A", "rad/s", "rad"]'),
@@ -105,12 +105,14 @@ def _table(values: dict, keys) -> dict:
     return {key: values[key] for key in keys if key in values["given"]}
 
 
-def _poles_text(poles) -> str:
+def poles_text(poles) -> str:
     return ", ".join(f"{complex(p):.6g}".strip("()").replace("+0j", "").replace("-0j", "") for p in poles)
 
 
-def _matrix_text(matrix) -> str:
-    return np.array2string(np.asarray(matrix), precision=6, separator=", ", max_line_width=10 ** 6)
+def matrix_text(matrix) -> str:
+    """A matrix on one line, rows separated by ``;``: ``[1.5, 0.3; -2, 4]``."""
+    rows = np.atleast_2d(np.real_if_close(np.asarray(matrix)))
+    return "[" + "; ".join(", ".join(f"{v:.6g}" for v in row) for row in rows) + "]"
 
 
 def _define_observer(model_name: str, values: dict, context: Context) -> list:
@@ -129,7 +131,7 @@ def _define_observer(model_name: str, values: dict, context: Context) -> list:
     x_hat0 = np.zeros(model.n) if values["x_hat0"] is None else values["x_hat0"]
     if np.size(x_hat0) != model.n:
         raise ParameterError(f"{context.prefix}x_hat0: expected {model.n} entries, got {np.size(x_hat0)}")
-    context.notes.append(f"{section}: N = {_matrix_text(N)}; eig(A - N C) = [{_poles_text(poles)}]")
+    context.notes.append(f"{section}: N = {matrix_text(N)}; eig(A - N C) = [{poles_text(poles)}]")
     return [observer_definition(model_name, model, N, x_hat0, units, values["description"], poles)]
 
 
@@ -154,7 +156,7 @@ def _define_feedback(model_name: str, values: dict, context: Context) -> list:
     if poles is not None:
         _require_bounded_transient(f"{section}.poles", model.A - model.B @ K)
     poles = np.linalg.eigvals(model.A - model.B @ K) if poles is None else poles
-    context.notes.append(f"{section}: K = {_matrix_text(K)}; eig(A - B K) = [{_poles_text(poles)}]")
+    context.notes.append(f"{section}: K = {matrix_text(K)}; eig(A - B K) = [{poles_text(poles)}]")
     return [feedback_definition(model_name, K, units, values["description"])]
 
 

@@ -182,6 +182,17 @@ def _compares(data: dict) -> list[dict]:
     return compares
 
 
+def _line_of(field: str, locator: Locator) -> int | None:
+    """The line a message's field is on: the key, the i-th connection, or the component of ``a.u``."""
+    first = field.split(" ")[0]
+    index = re.fullmatch(r"connections\[(\d+)\]", first)
+    if index:
+        return locator.item_line("connections", int(index[1]))
+    if " " in field:                    # "observer.u is not connected": the component's table
+        return locator.line("components." + first.partition(".")[0]) if "." in first else None
+    return locator.line(field)
+
+
 def parse_system(text: str, path: str = "<system>", folder: Path = Path(".")) -> SystemSpec:
     """Check the system file ``text`` (read from ``path``); :class:`ParameterError` names line and field."""
     locator = Locator(text)
@@ -191,8 +202,7 @@ def parse_system(text: str, path: str = "<system>", folder: Path = Path(".")) ->
         message = str(exc)
         if message.startswith(path + ":"):
             raise
-        field = message.partition(": ")[0]
-        line = locator.line(field) if " " not in field else None
+        line = _line_of(message.partition(": ")[0], locator)
         raise ParameterError(f"{path}:{line}: {message}" if line else f"{path}: {message}") from None
 
 

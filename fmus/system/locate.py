@@ -17,6 +17,7 @@ _DOTTED = rf"{_PART}(?:\s*\.\s*{_PART})*"
 _HEADER = re.compile(rf"\s*(\[\[?)\s*({_DOTTED})\s*\]\]?")
 _KEY = re.compile(rf"\s*({_DOTTED})\s*=")
 _INDEX = re.compile(r"\[\d+\]")
+_STRING = re.compile(r'"(?:[^"\\\n]|\\.)*"')
 
 
 def _parts(dotted: str) -> list[str]:
@@ -54,6 +55,16 @@ class Locator:
                     return self.places[candidate][0]
             parts.pop()
         return None
+
+    def item_line(self, name: str, index: int) -> int | None:
+        """The line of the ``index``-th (from 1) string of the list written at key ``name``."""
+        place = self.places.get(name)
+        if place is None:
+            return None
+        for number, match in enumerate(_STRING.finditer(self.text, place[1]), start=1):
+            if number == index:
+                return self.text.count("\n", 0, match.start()) + 1
+        return place[0]
 
     def string(self, name: str, value: str, after: int = 0) -> tuple[int, int, int] | None:
         """``(line, column, end offset)`` of the string ``value`` written at or after key ``name`` (and

@@ -62,8 +62,18 @@ class SystemSpec:
             connections=list(self.connections), stop_time=experiment["stop_time"], step=experiment["step"],
             order=experiment["master"], coupling=experiment["coupling"], summarize=self.summarize,
             plot=self.plot if self.compares else None, time_unit=self.time_unit,
-            output_interval=experiment["output_interval"],
+            output_interval=experiment["output_interval"], measure=self.measure(),
             claim=f"No paper: the user's system file {Path(self.path).name}.")
+
+    def measure(self):
+        """What ``obsfmu sweep`` measures: the largest convergence time and final error of the comparisons."""
+        if not self.compares:
+            return None
+        from ..campaign.measures import Measure
+        estimates = [c for compare in self.compares for c in compare["estimate_columns"]]
+        tolerances = ", ".join(f"{compare['tolerance']:g}" for compare in self.compares)
+        return Measure(tuple(f"convergence_time {c}" for c in estimates), tuple(f"final_error {c}" for c in estimates),
+                       f"every |truth - estimate| below its tolerance ({tolerances})", "max final |truth - estimate|")
 
     # ------------------------------------------------------------------ summary and figure
     def _pairs(self, result, compare) -> tuple[np.ndarray, np.ndarray]:
@@ -85,8 +95,8 @@ class SystemSpec:
                 final = float(abs(error[-1, j]))
                 metrics[f"final_error {e_name}"] = final
                 metrics[f"convergence_time {e_name}"] = converged
-                column_unit = result.unit(t_name)
-                lines.append(f"{e_name} vs {t_name}: final |error| {final:.3g}{' ' + column_unit if column_unit else ''}, "
+                column_unit = f" {result.unit(t_name)}" if result.unit(t_name) else ""
+                lines.append(f"{e_name} vs {t_name}: final |error| {final:.3g}{column_unit}, "
                              f"below {compare['tolerance']:g} from {format_time(converged, unit)}")
         if not lines:
             lines.append("nothing compared (add [[report.compare]] tables with estimate and truth)")
