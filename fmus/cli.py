@@ -472,8 +472,8 @@ def _configure_run(parser) -> None:
     parser.add_argument("--master", choices=ORDERS,
                         help="stepping order (default: the scenario's); adaptive: Gauss-Seidel steps with step "
                              "doubling and rollback to --tol")
-    parser.add_argument("--tol", type=_positive, default=1e-6,
-                        help="adaptive master: error per unit step on every output (default 1e-6)")
+    parser.add_argument("--tol", type=_positive,
+                        help="adaptive master: error per unit step on every output (default: the scenario's, 1e-6)")
     parser.add_argument("--csv", metavar="FILE.csv",
                         help="write every output at every communication point, streamed as the run goes "
                              "(an interrupted run leaves FILE.partial.csv)")

@@ -235,3 +235,69 @@ def test_the_field_reference_is_the_generated_one():
     assert checked_in == field_reference(), "regenerate: obsfmu show --fields > docs/system-file-reference.md"
     for kind in ("lti", "expression", "luenberger", "state-feedback", "chirp", "csv", "noise", "added-noise"):
         assert f"### `{kind}`" in checked_in
+
+
+PENDULUM = '''name = "pendulum"
+connections = ["torque.y -> plant.u"]
+
+[experiment]
+stop_time = 3.0
+step = 1e-3
+
+[components.torque]
+kind = "sine"
+amplitude = 0.5
+frequency_hz = 0.7
+
+[components.plant]
+kind = "expression"
+inputs = 1
+parameters = { g = 9.81, l = 0.5, c = 0.2 }
+parameter_units = { g = "m/s2", l = "m", c = "1/s" }
+f = ["x[2]", "-g / l * sin(x[1]) - c * x[2] + u[1]"]
+h = ["x[1]"]
+x0 = [0.5, 0]
+max_substep = 1e-4
+state_units = ["rad", "rad/s"]
+'''
+
+
+def test_an_expression_plant_driven_by_a_source_agrees_with_scipy(tmp_path):
+    """The pendulum with friction by expressions, driven by a sine torque: within 1e-6 rad of scipy."""
+    (tmp_path / "pendulum.toml").write_text(PENDULUM)
+    done = obsfmu("run", "--config", "pendulum.toml", "--csv", "out.csv", "--build-dir", "build", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert "nothing compared" in done.stdout
+    time, columns = read_csv(tmp_path / "out.csv")
+
+    def rhs(t, x):
+        return [x[1], -9.81 / 0.5 * np.sin(x[0]) - 0.2 * x[1] + 0.5 * np.sin(2 * np.pi * 0.7 * t)]
+
+    reference = solve_ivp(rhs, (0, 3), [0.5, 0], t_eval=time, method="DOP853", rtol=1e-12, atol=1e-12).y.T
+    assert np.abs(columns["plant.x[1]"] - reference[:, 0]).max() < 1e-6
+    assert np.abs(columns["plant.x[2]"] - reference[:, 1]).max() < 1e-5
+
+
+def test_sweep_varies_a_parameter_of_a_component(tmp_path):
+    (tmp_path / "pendulum.toml").write_text(PENDULUM)
+    done = obsfmu("sweep", "--config", "pendulum.toml", "--vary", "plant.c=0.1,0.3", "--workers", "1",
+                  "--no-plots", "--out", "sweep", "--build-dir", "build", cwd=tmp_path)
+    assert done.returncode == 2 and "no default measure: give --time-metric" in done.stderr, done.stderr
+    (tmp_path / "dcmotor.toml").write_text(motor_file())
+    done = obsfmu("sweep", "--config", "dcmotor.toml", "--vary", "plant.x0[3]=0.05,0.2", "--workers", "1",
+                  "--no-plots", "--out", "sweep", "--build-dir", "build", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert "2 of 2 samples done (2 ok)" in done.stdout, done.stdout
+    rows = (tmp_path / "sweep" / "samples.csv").read_text().splitlines()
+    assert len(rows) == 3 and "plant.x0[3]" in rows[0]
+
+
+def test_show_prints_the_reference_and_a_checked_file(tmp_path):
+    from fmus.system import field_reference
+    done = obsfmu("show", "--fields", cwd=tmp_path)
+    assert done.returncode == 0 and done.stdout == field_reference()
+    (tmp_path / "dcmotor.toml").write_text(motor_file())
+    done = obsfmu("show", "--config", "dcmotor.toml", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert "observer (luenberger, FMU dcmotor_observer): inputs u[1], y[1]; outputs x_hat[3], y_hat[1]" in done.stdout
+    assert "observer.x_hat[3] -> controller.x_hat[3]" in done.stdout

@@ -73,6 +73,8 @@ class Scenario:
     not_adaptive: str | None = None
     #: ``(smallest tolerance, why)``: the adaptive master refuses tighter tolerances at once, with the reason
     adaptive_floor: tuple[float, str] | None = None
+    #: the adaptive master's error per unit step when none is given (``--tol``)
+    tolerance: float = 1e-6
     #: the first step split into h/2^ramp, ..., h/2 (see :func:`fmus.master.cosimulate`)
     ramp: int = 0
     #: what the paper claims for this example, in our words and numbers (for ``obsfmu report``)
@@ -288,7 +290,7 @@ def run_info(scenario: Scenario, fmus: dict[str, Path], overrides=(), **settings
 
 def run(name: str, build_dir: Path | str = "build", *, stop_time: float | None = None,
         step: float | None = None, order: str | None = None, coupling: str | None = None,
-        overrides=(), progress: bool = False, tolerance: float = 1e-6, recorder: Recorder | None = None,
+        overrides=(), progress: bool = False, tolerance: float | None = None, recorder: Recorder | None = None,
         should_stop: Callable[[], bool] | None = None, fmi_version: int = 2,
         ramp: int | None = None) -> tuple[Result, Summary | None]:
     """Build (if needed) and co-simulate scenario ``name``; returns the result and its summary.
@@ -301,6 +303,7 @@ def run(name: str, build_dir: Path | str = "build", *, stop_time: float | None =
     means the scenario's default (``ramp``: its start-up ramp, :func:`fmus.master.cosimulate`).
     """
     scenario = get(name)
+    tolerance = scenario.tolerance if tolerance is None else tolerance
     if (order or scenario.order) == "adaptive" and scenario.not_adaptive:
         raise SimulationError(f"{name}: the adaptive master cannot run this scenario: {scenario.not_adaptive}")
     floor = scenario.adaptive_floor

@@ -218,6 +218,9 @@ def _parse(text: str, path: str, folder: Path, locator: Locator) -> SystemSpec:
         raise ParameterError(f"{path}: not valid TOML: {exc}") from None
     except RecursionError:
         raise ParameterError(f"{path}: not valid TOML: nested too deep") from None
+    if not data:
+        raise ParameterError(f"{path}: the file is empty; a system file needs at least name, [experiment] and "
+                             "[components.NAME] tables (see 'obsfmu show --fields')")
     _unknown("", data, [f.name for f in TOP_FIELDS] + sorted(_SECTIONS))
     top, _ = _fields("", {k: v for k, v in data.items() if k not in _SECTIONS and k != "connections"},
                      TOP_FIELDS[:3])

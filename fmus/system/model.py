@@ -62,7 +62,7 @@ class SystemSpec:
             connections=list(self.connections), stop_time=experiment["stop_time"], step=experiment["step"],
             order=experiment["master"], coupling=experiment["coupling"], summarize=self.summarize,
             plot=self.plot if self.compares else None, time_unit=self.time_unit,
-            output_interval=experiment["output_interval"], measure=self.measure(),
+            output_interval=experiment["output_interval"], measure=self.measure(), tolerance=experiment["tolerance"],
             claim=f"No paper: the user's system file {Path(self.path).name}.")
 
     def measure(self):
