@@ -282,14 +282,12 @@ def _interrupted(outcome: Outcome, name: str, stop: StopRequest) -> int:
 
 # ----------------------------------------------------------------------------- subcommands
 def cmd_build(args) -> int:
-    from .builder import build_fmu
-
-    from .fmi3 import build_folder
-
-    out = check_directory("--out", args.out)
     if args.config:  # checked whole before anything is written
-        from .system.commands import build_from_file
-        paths = build_from_file(args.config, out, args.fmi_version)
+        from .system.commands import build_definitions, definitions_of
+        definitions = definitions_of(args.config)
+    out = check_directory("--out", args.out)
+    if args.config:
+        paths = build_definitions(definitions, out, args.fmi_version)
     else:
         paths = _build_all(out, args.fmi_version)
     return 1 if _report_built(paths) else 0

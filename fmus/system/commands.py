@@ -15,7 +15,7 @@ from pathlib import Path
 
 from observers.checks import ParameterError
 
-__all__ = ["scenario_key", "build_from_file", "show", "is_design_file", "holds_components", "configure_show"]
+__all__ = ["scenario_key", "definitions_of", "build_definitions", "show", "is_design_file", "holds_components", "configure_show"]
 
 
 def scenario_key(args) -> str:
@@ -64,15 +64,9 @@ def _design_definitions(path: Path) -> tuple[list, list[str]]:
     return design.definitions(), notes
 
 
-def build_from_file(path: Path | str, out: Path, fmi_version: int = 2) -> list[Path]:
-    """Build the FMUs of the file ``path`` into ``out`` (its FMI 3.0 folder for version 3).
-
-    The file is checked whole first; the FMUs are built into a temporary folder beside their place and
-    moved there only once all are built, so an error leaves nothing half-written.  The designed gains
-    and poles are printed.
-    """
-    from ..builder import build_fmu
-    from ..fmi3 import build_folder
+def definitions_of(path: Path | str) -> list:
+    """The FMU definitions of the file ``path``, checked whole (nothing written); the designed gains and
+    poles are printed."""
     path = Path(path)
     if is_design_file(path):
         definitions, notes = _design_definitions(path)
@@ -82,6 +76,17 @@ def build_from_file(path: Path | str, out: Path, fmi_version: int = 2) -> list[P
         definitions, notes = spec.definitions(), spec.notes
     for note in notes:
         print(note)
+    return definitions
+
+
+def build_definitions(definitions: list, out: Path, fmi_version: int = 2) -> list[Path]:
+    """Build ``definitions`` into ``out`` (its FMI 3.0 folder for version 3).
+
+    The FMUs are built into a temporary folder beside their place and moved there only once all are
+    built, so an error leaves nothing half-written.
+    """
+    from ..builder import build_fmu
+    from ..fmi3 import build_folder
     folder = build_folder(out, fmi_version)
     folder.mkdir(parents=True, exist_ok=True)
     temporary = Path(tempfile.mkdtemp(prefix=".obsfmu_build_", dir=folder))
