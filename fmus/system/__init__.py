@@ -41,8 +41,18 @@ def is_system_file(name: str) -> bool:
 
 def field_reference() -> str:
     """The field reference of the system file (markdown), generated from the registry."""
-    from .load import COMPARE_FIELDS, EXPERIMENT_FIELDS, TOP_FIELDS
+    from observers.expressions import MAX_DEPTH, MAX_LENGTH
+
+    from .connect import MAX_CONNECTIONS
+    from .load import COMPARE_FIELDS, EXPERIMENT_FIELDS, MAX_COMPONENTS, MAX_FILE_BYTES, TOP_FIELDS
     from .schema import reference
+    from .values import MAX_DIMENSION, MAX_ENTRIES, MAX_TEXT
+    limits = (f"A file of at most {MAX_FILE_BYTES // 2 ** 20} MiB, plain UTF-8 text without control characters; "
+              f"at most {MAX_COMPONENTS} components and {MAX_CONNECTIONS} connections; matrices of at most "
+              f"{MAX_DIMENSION} rows and columns (states, inputs, outputs), vectors of at most {MAX_ENTRIES} "
+              f"entries; texts of at most {MAX_TEXT} characters; an expression of at most {MAX_LENGTH} characters "
+              f"nested at most {MAX_DEPTH} deep. Beyond a limit the file is refused at once, naming the field and "
+              "the limit.")
     return reference({
         "Top level": ("The file's own fields, before any table.", TOP_FIELDS),
         "[experiment]": ("The run's defaults (`obsfmu run` options override them).", EXPERIMENT_FIELDS),
@@ -52,4 +62,5 @@ def field_reference() -> str:
         "[[report.compare]]": ("What the summary and the figure compare (one table per pair). `[report]` may "
                                "also name `reference = \"file.csv\"`: a CSV of the run's columns to compare with.",
                                COMPARE_FIELDS),
+        "Limits": (limits, ()),
     })

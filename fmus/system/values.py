@@ -15,11 +15,12 @@ import numpy as np
 from observers.checks import ParameterError
 from observers.expressions import MAX_LENGTH
 
+from ..config import MAX_DIMENSION as CONFIG_MAX_DIMENSION
 from .schema import Field
 
 __all__ = ["check_value", "check_text", "MAX_DIMENSION", "MAX_ENTRIES"]
 
-MAX_DIMENSION = 500       #: rows and columns of a matrix (states, inputs, outputs of a design)
+MAX_DIMENSION = CONFIG_MAX_DIMENSION     #: rows and columns of a matrix (as for the design file: fmus/config.py)
 MAX_ENTRIES = 100_000     #: entries of a vector (a table source's break points)
 MAX_TEXT = 1000           #: characters of a text field (names, units, descriptions, paths)
 
