@@ -189,10 +189,11 @@ def _report_built(paths) -> int:
     return failures
 
 
-def _build_all(build_dir: Path, fmi_version: int = 2) -> list[Path]:
+def _build_all(build_dir: Path, fmi_version: int = 2, standalone: bool = False) -> list[Path]:
     """Every distinct FMU of the scenarios, each built once (ltv-ls and ltv-ls-bounded share theirs)."""
     from .scenarios import SCENARIOS, ensure_all
-    return list(ensure_all(SCENARIOS.values(), build_dir, force=True, fmi_version=fmi_version).values())
+    return list(ensure_all(SCENARIOS.values(), build_dir, force=True, fmi_version=fmi_version,
+                           standalone=standalone).values())
 
 
 def _figure_paths(option: str, path: str) -> list[Path]:
@@ -250,10 +251,10 @@ def cmd_build(args) -> int:
     if args.config:
         from .config import design_from_config, load_config
         design = design_from_config(load_config(args.config))
-        paths = [build_fmu(definition, build_folder(out, args.fmi_version), fmi_version=args.fmi_version)
-                 for definition in design.definitions()]
+        paths = [build_fmu(definition, build_folder(out, args.fmi_version), fmi_version=args.fmi_version,
+                           standalone=args.standalone) for definition in design.definitions()]
     else:
-        paths = _build_all(out, args.fmi_version)
+        paths = _build_all(out, args.fmi_version, args.standalone)
     return 1 if _report_built(paths) else 0
 
 
@@ -311,7 +312,7 @@ def cmd_export(args) -> int:
     build_dir = check_directory("--build-dir", args.build_dir, writable=False)
     path = export(scenario, args.format, out, build_dir, step=times["step"], stop_time=times["stop_time"],
                   overrides=scenarios.parse_overrides(args.set or []), coupling=args.coupling,
-                  fmi_version=args.fmi_version, system_outputs=args.system_outputs)
+                  fmi_version=args.fmi_version, system_outputs=args.system_outputs, standalone=args.standalone)
     print(f"wrote {path}")
     return 0
 
@@ -411,6 +412,14 @@ def _configure_build(parser) -> None:
     parser.add_argument("--out", default=str(DEFAULT_BUILD), metavar="DIR",
                         help="directory for the FMUs (created if missing; default: build)")
     _add_fmi_version(parser)
+    _add_standalone(parser)
+
+
+def _add_standalone(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--standalone", action="store_true",
+                        help="FMUs that carry their own Python runtime (libpython, the standard library and numpy "
+                             "modules their code imports, the libraries those load: ~27 MB each): they run on a "
+                             "Linux x86-64 machine with nothing installed; see docs/portability.md")
 
 
 def _configure_run(parser) -> None:
@@ -441,6 +450,7 @@ def _configure_export(parser) -> None:
     parser.add_argument("--no-system-outputs", dest="system_outputs", action="store_false",
                         help="ssp: no connections to the system's output connectors (libcosim and ECOS reject "
                              "them; FMU Manipulation Toolbox needs them to expose the outputs)")
+    _add_standalone(parser)
 
 
 def _cpus() -> int:

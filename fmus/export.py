@@ -69,8 +69,9 @@ class _Exported:
     Names are FMI 2.0 element names (``x0[1]``) for both FMI versions (:mod:`fmus.fmi3.elements`).
     """
 
-    def __init__(self, scenario: Scenario, build_dir: Path, overrides, coupling: str, fmi_version: int = 2):
-        fmus = ensure_fmus(scenario, build_dir, fmi_version=fmi_version)
+    def __init__(self, scenario: Scenario, build_dir: Path, overrides, coupling: str, fmi_version: int = 2,
+                 standalone: bool = False):
+        fmus = ensure_fmus(scenario, build_dir, fmi_version=fmi_version, standalone=standalone)
         self.fmi_version = fmi_version
         self.system = system(scenario, fmus, overrides)
         descriptions = {c.name: read_model_description(str(c.fmu)) for c in self.system.components}
@@ -261,11 +262,13 @@ def _ssd(exported: _Exported, scenario: Scenario, step: float, stop_time: float,
 
 def export(scenario: Scenario, fmt: str, out_dir: Path | str, build_dir: Path | str = "build", *,
            step: float | None = None, stop_time: float | None = None, overrides=(),
-           coupling: str | None = None, fmi_version: int = 2, system_outputs: bool = True) -> Path:
+           coupling: str | None = None, fmi_version: int = 2, system_outputs: bool = True,
+           standalone: bool = False) -> Path:
     """Write the scenario for another tool; returns the ``.xml`` (osp) or ``.ssp`` file.
 
     ``fmi_version`` 3 exports the scenario's FMI 3.0 FMUs (SSP only).  ``system_outputs=False``
     leaves out the SSD's connections to the system's output connectors (for libcosim and ECOS).
+    ``standalone``: the FMUs carry their Python (:mod:`fmus.standalone`).
     """
     if fmt not in FORMATS:
         raise SimulationError(f"format: {fmt!r} is not one of {FORMATS}")
@@ -278,7 +281,7 @@ def export(scenario: Scenario, fmt: str, out_dir: Path | str, build_dir: Path | 
         raise SimulationError(f"coupling: {coupling!r} is not one of {COUPLINGS}")
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    exported = _Exported(scenario, Path(build_dir), overrides, coupling or scenario.coupling, fmi_version)
+    exported = _Exported(scenario, Path(build_dir), overrides, coupling or scenario.coupling, fmi_version, standalone)
     if fmt == "osp":
         return _osp(exported, scenario, out_dir, step)
     path = out_dir / f"{scenario.name}.ssp"

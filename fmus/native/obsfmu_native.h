@@ -23,7 +23,7 @@
 #define OBSFMU_RECORD "obsfmu_native.txt"
 #define OBSFMU_STARTS "obsfmu_start.txt" /* start values of an exported copy (loader_common.h) */
 #define OBSFMU_BRIDGE_SYMBOL "obsfmu_bridge"
-#define OBSFMU_BRIDGE_ABI 3
+#define OBSFMU_BRIDGE_ABI 4
 
 /* What the loader keeps in an FMU state (one serialized format: the slave's, fmus/runtime/state_format.py).
  * The loader hands `fmi` and `state` to the slave's getFMUstate; machineOf() gives them back from any
@@ -88,6 +88,10 @@ typedef struct {
     fmi2Status (*doStepBatched)(fmi2Component c, fmi2Real t, fmi2Real h, const fmi2ValueReference vr[], size_t nvr,
                                 const fmi2Real value[], const fmi2Real slope[], const fmi2ValueReference out_vr[],
                                 size_t nout, fmi2Real out[], int *stepped);
+    /* start() for a standalone FMU: its own runtime in `home` (libpython loaded RTLD_GLOBAL from there),
+     * isolated (PYTHON* variables, user site ignored), the module search path the ':'-separated folders
+     * `search` relative to `home`; nothing is written there (it may be read-only). 0 on success. */
+    int (*startIsolated)(const char *home, const char *search, char *message, size_t size);
 } ObsfmuBridge;
 
 typedef const ObsfmuBridge *ObsfmuBridgeFunction(void);
