@@ -52,8 +52,9 @@ def load_slave_class(resources: str, package: str, module: str, name: str) -> ty
 
 def _join_runtime(resources: str) -> None:
     """A standalone FMU (fmus/standalone.py) in an interpreter that another standalone FMU's runtime runs:
-    this FMU's runtime folders join the module search path, after the running one's (each runtime holds
-    only the modules its own FMU imports)."""
+    this FMU's runtime folders join the module search path after the running one's, and the folders of
+    the packages imported from the running runtime (numpy, ...) join their ``__path__`` -- each runtime
+    holds only the modules its own FMU imports."""
     if not (sys.flags.isolated and os.path.isfile(os.path.join(sys.prefix, RUNTIME_DESCRIPTION))):
         return  # not a standalone runtime: the host's interpreter, or the one recorded at the build
     record = {}
@@ -61,10 +62,19 @@ def _join_runtime(resources: str) -> None:
         for line in file:
             key, _, value = line.rstrip("\n").partition("=")
             record.setdefault(key, value)
-    if record.get("runtime"):
-        home = os.path.join(resources, record["runtime"])
-        sys.path.extend(p for p in (os.path.join(home, f) for f in record["runtime_path"].split(":"))
-                        if p not in sys.path)
+    home = os.path.join(resources, record.get("runtime", ""))
+    if not record.get("runtime") or os.path.realpath(home) == os.path.realpath(sys.prefix):
+        return
+    relative = record["runtime_path"].split(":")
+    pairs = [(os.path.join(sys.prefix, r) + os.sep, os.path.join(home, r) + os.sep) for r in relative]
+    sys.path.extend(p for p in (os.path.join(home, r) for r in relative) if p not in sys.path)
+    for module in list(sys.modules.values()):
+        path = getattr(module, "__path__", None)
+        for entry in list(path) if isinstance(path, list) else ():
+            for running, own in pairs:
+                folder = own + entry[len(running):] if entry.startswith(running) else None
+                if folder and folder not in path and os.path.isdir(folder):
+                    path.append(folder)
 
 
 def _add_extraction(package: str, directory: str) -> None:

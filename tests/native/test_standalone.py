@@ -1,0 +1,175 @@
+"""Standalone FMUs (``obsfmu build --standalone``) in a root file system that holds no Python at all.
+
+The root (``python_free_root.py``) has the C importer, the manylinux2014 system libraries and the
+FMUs; the importer runs there under chroot in a mount namespace with an empty environment -- or
+with PYTHONHOME/PYTHONPATH pointing at nothing, which the FMU's isolated interpreter ignores.
+One process co-simulates the ship loop, the bounded LTV system, then the ship loop again
+(instantiate -> free -> instantiate, six kinds, two kinds' runtimes in one interpreter) and must
+reproduce ``obsfmu run --master jacobi`` bit for bit, FMI 2.0 and FMI 3.0; every other block
+kind runs a few steps on its pruned runtime; nothing is written into the FMUs.
+"""
+
+import subprocess
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fmus.scenarios import SCENARIOS, ensure_fmus, get, run
+from fmus.standalone import RUNTIME, SYSTEM_LIBRARIES
+from native_harness import read_csv, system_script
+from python_free_root import enter_command, make_root, pythons, run_in_root, unzip
+
+RUNS = {"ship": (0.2, 1e-4), "ltv-ls-bounded": (2.0, 1e-3)}
+SEQUENCE = ["ship", "ltv-ls-bounded", "ship"]
+HOSTILE = {"PYTHONHOME": "/nowhere", "PYTHONPATH": "/nowhere", "PYTHONNOUSERSITE": "", "PYTHONVERBOSE": "1"}
+
+
+@pytest.fixture(scope="module")
+def standalone_dir(tmp_path_factory):
+    return tmp_path_factory.mktemp("standalone")
+
+
+@pytest.fixture(scope="module")
+def root(importer, tmp_path_factory):
+    root = make_root(tmp_path_factory.mktemp("root"), importer)
+    prefix = enter_command(root)
+    if prefix is None:
+        pytest.skip("this process may not chroot (neither unshare --mount --map-root-user chroot nor chroot works)")
+    return root, prefix
+
+
+def _system_lines(root_dir, fmus, scenario, csv, stop, step, tag):
+    unzipped = [unzip(root_dir, instance, fmus[model], f"{tag}_{instance}") for instance, model, _ in scenario.components]
+    starts = {instance: start for instance, _, start in scenario.components}
+    return system_script(unzipped, scenario.connections, starts) + [
+        f"cosim jacobi {scenario.coupling} 0 {stop!r} {step!r} {csv}", "clear"]
+
+
+def _sequence_run(root, standalone_dir, fmi_version, name, env=None):
+    root_dir, prefix = root
+    lines = []
+    for k, scenario_name in enumerate(SEQUENCE):
+        scenario, (stop, step) = get(scenario_name), RUNS[scenario_name]
+        fmus = ensure_fmus(scenario, standalone_dir, fmi_version=fmi_version, standalone=True)
+        lines += _system_lines(root_dir, fmus, scenario, f"/out/{name}{k}.csv", stop, step, f"{name}{k}")
+    listing = _files(root_dir / "fmus")
+    completed = run_in_root(prefix, root_dir, lines, name, env=env)
+    assert completed.returncode == 0, completed.stdout[-3000:] + completed.stderr[-3000:]
+    completed.written = _files(root_dir / "fmus") - listing
+    return completed, [read_csv(root_dir / "out" / f"{name}{k}.csv") for k in range(len(SEQUENCE))]
+
+
+def _files(folder: Path) -> set:
+    return {p.relative_to(folder).as_posix() for p in folder.rglob("*")}
+
+
+@pytest.fixture(scope="module")
+def fmi2_in_root(root, standalone_dir):
+    return _sequence_run(root, standalone_dir, 2, "fmi2", env=HOSTILE)
+
+
+@pytest.fixture(scope="module")
+def fmi3_in_root(root, standalone_dir):
+    return _sequence_run(root, standalone_dir, 3, "fmi3")
+
+
+@pytest.fixture(scope="module")
+def master_runs(build_dir):
+    return {(name, version): run(name, build_dir, stop_time=RUNS[name][0], step=RUNS[name][1], order="jacobi",
+                                 ramp=0, fmi_version=version)[0]
+            for name in RUNS for version in (2, 3)}
+
+
+def test_the_root_holds_no_python(root, fmi2_in_root):
+    root_dir = root[0]
+    assert pythons(root_dir) == []
+    assert sorted(p.name for p in root_dir.iterdir()) == ["fmi2.txt", "fmus", "importer", "lib", "lib64", "out"]
+
+
+@pytest.mark.parametrize("version", [2, 3])
+@pytest.mark.parametrize("index", range(len(SEQUENCE)), ids=[f"{k}-{n}" for k, n in enumerate(SEQUENCE)])
+def test_standalone_fmus_without_python_reproduce_the_jacobi_master_bit_for_bit(fmi2_in_root, fmi3_in_root,
+                                                                                master_runs, version, index):
+    _, results = fmi2_in_root if version == 2 else fmi3_in_root
+    ours = master_runs[SEQUENCE[index], version]
+    theirs = results[index]
+    assert theirs.shape == (len(ours.time), 1 + len(ours.columns))
+    np.testing.assert_array_equal(theirs[:, 0], ours.time)
+    np.testing.assert_array_equal(theirs[:, 1:], ours.values)  # bit for bit
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_one_process_instantiates_again_and_runs_two_kinds_runtimes(fmi2_in_root, fmi3_in_root, version):
+    completed, _ = fmi2_in_root if version == 2 else fmi3_in_root
+    instantiations = [line.split()[1:3] for line in completed.stdout.splitlines() if line.startswith("instantiate ")]
+    ship = [["plant", "ok"], ["observer", "ok"], ["controller", "ok"]]
+    assert instantiations == ship + [["source", "ok"], ["plant", "ok"], ["observer", "ok"]] + ship
+    first = float(completed.stdout.split("instantiate plant ok ")[1].split()[0])
+    assert first < 1.0, first  # the budget of issue 28: <= 1 s to the first instance (measured ~0.1 s)
+
+
+def test_the_runtime_ignores_python_variables_and_writes_nothing(fmi2_in_root):
+    completed, _ = fmi2_in_root
+    assert completed.written == set()          # no __pycache__: the FMU may be read-only
+    assert "import " not in completed.stderr   # PYTHONVERBOSE=1 ignored (and PYTHONHOME=/nowhere did not stop it)
+
+
+def _one_per_kind():
+    """kind -> (scenario, model name) of the first FMU of each block kind of the scenarios."""
+    kinds = {}
+    for scenario in SCENARIOS.values():
+        for item in scenario.definitions():
+            definition = item[0] if isinstance(item, tuple) else item
+            kinds.setdefault(definition.kind, (scenario, definition.model_name))
+    return kinds
+
+
+def test_every_kind_runs_on_its_pruned_runtime_without_python(root, standalone_dir):
+    root_dir, prefix = root
+    lines, kinds = [], _one_per_kind()
+    for kind, (scenario, model) in kinds.items():
+        fmu = ensure_fmus(scenario, standalone_dir, standalone=True)[model]
+        instance, start = next((i, s) for i, m, s in scenario.components if m == model)
+        unzipped = unzip(root_dir, instance, fmu, f"kind_{kind}")
+        starts = {instance: start}
+        lines += system_script([unzipped], [], starts) + [
+            f"cosim jacobi hold 0 {5 * scenario.step!r} {scenario.step!r} /out/kind_{kind}.csv", "clear"]
+    completed = run_in_root(prefix, root_dir, lines, "kinds")
+    assert completed.returncode == 0, completed.stdout[-3000:] + completed.stderr[-3000:]
+    statuses = [line.split()[2] for line in completed.stdout.splitlines() if line.startswith("instantiate ")]
+    assert statuses == ["ok"] * len(kinds), completed.stdout[-3000:]
+    for kind in kinds:
+        values = read_csv(root_dir / "out" / f"kind_{kind}.csv")
+        assert values.shape[0] == 6 and np.isfinite(values).all(), kind
+
+
+def _needed(library: Path) -> list[str]:
+    dynamic = subprocess.run(["readelf", "-d", str(library)], capture_output=True, text=True, check=True).stdout
+    return [line.split("[")[1].rstrip("]") for line in dynamic.splitlines() if "(NEEDED)" in line]
+
+
+def test_the_runtime_is_pruned_and_holds_every_library_it_loads(standalone_dir, tmp_path):
+    fmu = ensure_fmus(get("ship"), standalone_dir, standalone=True)["ship_observer"]
+    with zipfile.ZipFile(fmu) as archive:
+        names = [n for n in archive.namelist() if n.startswith(f"resources/{RUNTIME}/")]
+        archive.extractall(tmp_path, names)
+    assert not [n for n in names if n.endswith(".py") or "/tests/" in n or n.endswith(".h") or "__pycache__" in n]
+    assert not [n for n in names if "/scipy" in n]                  # no FMU imports scipy at run time
+    assert any("numpy/_core/_multiarray_umath" in n for n in names)
+    assert not [n for n in names if "/numpy/random/" in n or "/numpy/f2py/" in n]   # never imported
+    libraries = [tmp_path / n for n in names if ".so" in Path(n).name]
+    held = {path.name for path in libraries}
+    for library in libraries:
+        missing = [n for n in _needed(library) if not n.startswith(SYSTEM_LIBRARIES) and n not in held]
+        assert missing == [], (library, missing)
+
+
+def test_a_python_host_runs_a_standalone_fmu_on_its_own_interpreter(standalone_dir):
+    from fmpy import simulate_fmu
+    fmu = ensure_fmus(get("ship"), standalone_dir, standalone=True)["ship_plant"]
+    result = simulate_fmu(str(fmu), stop_time=1e-3, step_size=1e-4, output_interval=1e-4)
+    assert len(result) == 11 and np.isfinite(result["time"]).all()
+    maps = Path("/proc/self/maps").read_text()
+    assert f"resources/{RUNTIME}/lib/libpython" not in maps  # the host's interpreter ran it
