@@ -30,6 +30,7 @@ import importlib.util
 import marshal
 import os
 import re
+import shutil
 import subprocess
 import sys
 import sysconfig
@@ -162,6 +163,26 @@ def _dependencies(files: dict[str, bytes | Path]) -> tuple[dict[str, Path], list
     return extra, sorted(extra, key=lambda name: (depends[name], name))
 
 
+@functools.lru_cache(maxsize=256)
+def _without_debug_information(library: Path) -> bytes | Path:
+    """``library`` without its debug sections (``strip --strip-debug``: symbols kept; pyenv builds
+    libpython with ``-g``, 23 -> 6 MB), or the file itself when there is no ``strip``."""
+    strip = shutil.which("strip")
+    if strip is None:
+        return library
+    with tempfile.TemporaryDirectory(prefix="obsfmu_strip_") as temp:
+        target = Path(temp) / library.name
+        completed = subprocess.run([strip, "--strip-debug", "-o", str(target), str(library)], capture_output=True)
+        return target.read_bytes() if completed.returncode == 0 else library
+
+
+def _stripped(files: dict[str, bytes | Path]) -> dict[str, bytes | Path]:
+    """``files`` with the interpreter's own libraries (all but the installed packages') stripped of debug
+    information (an installed package's wheel ships them stripped already)."""
+    return {name: _without_debug_information(data) if isinstance(data, Path) and not name.startswith(_SITE + "/")
+            else data for name, data in files.items()}
+
+
 def runtime_files(resources: Path) -> tuple[dict[str, bytes | Path], dict[str, str]]:
     """The files of ``resources/python/`` (relative to it: bytes, or a file to copy) for the FMU whose
     resources are unpacked in ``resources``, and the record's ``runtime*`` values."""
@@ -182,6 +203,7 @@ def runtime_files(resources: Path) -> tuple[dict[str, bytes | Path], dict[str, s
         raise StandaloneError(f"shared library names with spaces cannot be preloaded: {preload}")
     record = {"runtime": RUNTIME, "runtime_library": f"lib/{Path(library).name}",
               "runtime_preload": " ".join(preload), "runtime_path": ":".join(SEARCH_PATH)}
+    files = _stripped(files)
     files[RUNTIME_DESCRIPTION] = _description(sys.version.split()[0], modules, record).encode()
     return files, record
 

@@ -15,13 +15,32 @@ from pathlib import Path
 
 from fmpy import extract, read_model_description
 
-from native_harness import Unzipped
+from native_harness import Unzipped, system_script
 
 #: the system set on this machine (Debian multiarch): file names of the libraries and the dynamic loader
 LIBRARY_FOLDER = Path("/lib/x86_64-linux-gnu")
 SYSTEM_FILES = ("libc.so.6", "libm.so.6", "libdl.so.2", "librt.so.1", "libpthread.so.0", "libgcc_s.so.1",
                 "libstdc++.so.6")
 LOADER = Path("/lib64/ld-linux-x86-64.so.2")
+
+
+def first_of_each_kind() -> dict:
+    """kind -> (scenario, instance, model, start values) of the first FMU of each block kind of the scenarios."""
+    from fmus.scenarios import SCENARIOS
+    kinds = {}
+    for scenario in SCENARIOS.values():
+        for item in scenario.definitions():
+            definition = item[0] if isinstance(item, tuple) else item
+            if definition.kind not in kinds:
+                instance, start = next((i, s) for i, m, s in scenario.components if m == definition.model_name)
+                kinds[definition.kind] = (scenario, instance, definition.model_name, start)
+    return kinds
+
+
+def alone_lines(unzipped: Unzipped, start: dict, steps: int, step: float, csv: str) -> list[str]:
+    """The importer's script of one FMU run alone (inputs held at their start values) for ``steps`` steps."""
+    return system_script([unzipped], [], {unzipped.instance: start}) + [
+        f"cosim jacobi hold 0 {steps * step!r} {step!r} {csv}", "clear"]
 
 
 def make_root(root: Path, importer: Path) -> Path:

@@ -16,10 +16,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fmus.scenarios import SCENARIOS, ensure_fmus, get, run
+from fmus.scenarios import ensure_fmus, get, run
 from fmus.standalone import RUNTIME, SYSTEM_LIBRARIES
 from native_harness import read_csv, system_script
-from python_free_root import enter_command, make_root, pythons, run_in_root, unzip
+from python_free_root import alone_lines, enter_command, first_of_each_kind, make_root, pythons, run_in_root, unzip
 
 RUNS = {"ship": (0.2, 1e-4), "ltv-ls-bounded": (2.0, 1e-3)}
 SEQUENCE = ["ship", "ltv-ls-bounded", "ship"]
@@ -116,26 +116,13 @@ def test_the_runtime_ignores_python_variables_and_writes_nothing(fmi2_in_root):
     assert "import " not in completed.stderr   # PYTHONVERBOSE=1 ignored (and PYTHONHOME=/nowhere did not stop it)
 
 
-def _one_per_kind():
-    """kind -> (scenario, model name) of the first FMU of each block kind of the scenarios."""
-    kinds = {}
-    for scenario in SCENARIOS.values():
-        for item in scenario.definitions():
-            definition = item[0] if isinstance(item, tuple) else item
-            kinds.setdefault(definition.kind, (scenario, definition.model_name))
-    return kinds
-
-
 def test_every_kind_runs_on_its_pruned_runtime_without_python(root, standalone_dir):
     root_dir, prefix = root
-    lines, kinds = [], _one_per_kind()
-    for kind, (scenario, model) in kinds.items():
+    lines, kinds = [], first_of_each_kind()
+    for kind, (scenario, instance, model, start) in kinds.items():
         fmu = ensure_fmus(scenario, standalone_dir, standalone=True)[model]
-        instance, start = next((i, s) for i, m, s in scenario.components if m == model)
-        unzipped = unzip(root_dir, instance, fmu, f"kind_{kind}")
-        starts = {instance: start}
-        lines += system_script([unzipped], [], starts) + [
-            f"cosim jacobi hold 0 {5 * scenario.step!r} {scenario.step!r} /out/kind_{kind}.csv", "clear"]
+        lines += alone_lines(unzip(root_dir, instance, fmu, f"kind_{kind}"), start, 5, scenario.step,
+                             f"/out/kind_{kind}.csv")
     completed = run_in_root(prefix, root_dir, lines, "kinds")
     assert completed.returncode == 0, completed.stdout[-3000:] + completed.stderr[-3000:]
     statuses = [line.split()[2] for line in completed.stdout.splitlines() if line.startswith("instantiate ")]
