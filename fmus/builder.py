@@ -11,7 +11,9 @@ An FMU built here contains (layout and reasons: ``docs/portability.md``):
   of, for :func:`is_current`), ``obsfmu_native.txt`` (GUID, the Python to use, where the slave
   is) and the bundled code relocated under ``_obsfmu_<hash>/`` (:mod:`fmus.bundle`): the project
   packages, pythonfmu's slave base class and the user's extra modules.  The FMU runs in any
-  Python environment with numpy and scipy -- not only inside a checkout.
+  Python environment with numpy and scipy -- not only inside a checkout;
+* ``resources/python/`` -- only with ``standalone=True``: the Python runtime the FMU's code imports
+  (:mod:`fmus.standalone`), so the FMU runs where no Python is installed.
 """
 
 from __future__ import annotations

@@ -35,12 +35,13 @@ import subprocess
 import sys
 import sysconfig
 import tempfile
+import zipfile
 from pathlib import Path
 
 from . import native
 from .native.bootstrap import RUNTIME_DESCRIPTION
 
-__all__ = ["StandaloneError", "runtime_files", "record_lines", "SYSTEM_LIBRARIES", "RUNTIME"]
+__all__ = ["StandaloneError", "with_runtime", "runtime_files", "describe", "SYSTEM_LIBRARIES", "RUNTIME"]
 
 #: the folder of the runtime inside resources/
 RUNTIME = "python"
@@ -68,7 +69,8 @@ def traced_modules(resources: Path) -> dict[str, Path]:
     sites = sorted({sysconfig.get_paths()["purelib"], sysconfig.get_paths()["platlib"]})
     command = [sys.executable, "-I", "-S", "-X", "utf8", str(Path(__file__).with_name("standalone_trace.py")),
                str(resources), *sites]
-    completed = subprocess.run(command, capture_output=True, text=True, env={}, timeout=600)
+    keep = {key: os.environ[key] for key in ("LD_LIBRARY_PATH",) if key in os.environ}  # where libpython may be
+    completed = subprocess.run(command, capture_output=True, text=True, env=keep, timeout=600)
     if completed.returncode != 0:
         raise StandaloneError("running the FMU's slave to see what it imports failed:\n"
                               + completed.stderr[-3000:])
@@ -238,7 +240,6 @@ def record_lines(record: dict[str, str]) -> str:
 
 def describe(fmu: Path) -> dict[str, int]:
     """Size facts of a standalone FMU: the file, and the runtime's share uncompressed and compressed."""
-    import zipfile
     with zipfile.ZipFile(fmu) as archive:
         runtime = [i for i in archive.infolist() if i.filename.startswith(f"resources/{RUNTIME}/")]
     return {"fmu_bytes": os.path.getsize(fmu), "runtime_files": len(runtime),
