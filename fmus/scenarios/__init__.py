@@ -125,11 +125,11 @@ def _ensure(items, build_dir: Path, force: bool, fmi_version: int, standalone: b
     folder = build_folder(build_dir, fmi_version)
     for definition, extra_modules in items:
         path = folder / f"{definition.model_name}.fmu"
-        if force or not is_current(path, definition, extra_modules, fmi_version, standalone):
-            build_fmu(definition, folder, extra_modules, fmi_version, standalone)
+        if force or not is_current(path, definition, extra_modules, fmi_version, standalone=standalone):
+            build_fmu(definition, folder, extra_modules, fmi_version, standalone=standalone)
         elif (problem := _damage(path, fmi_version)) is not None:
             print(f"obsfmu: note: {path}: {problem}; rebuilding it", file=sys.stderr)
-            build_fmu(definition, folder, extra_modules, fmi_version, standalone)
+            build_fmu(definition, folder, extra_modules, fmi_version, standalone=standalone)
         problem = _damage(path, fmi_version)
         if problem is not None:
             raise SimulationError(f"{path}: {problem} even after rebuilding it")

@@ -80,6 +80,19 @@ def enter_command(root: Path) -> list[str] | None:
     return None
 
 
+def read_only_command(root: Path) -> list[str] | None:
+    """Like :func:`enter_command`, with ``/fmus`` mounted read-only first (a bind mount in the new mount
+    namespace); None when that is not permitted."""
+    unshare, chroot, shell = shutil.which("unshare"), shutil.which("chroot"), shutil.which("sh")
+    if not (unshare and chroot and shell):
+        return None
+    script = (f'mount --bind "$0/fmus" "$0/fmus" && mount -o remount,ro,bind "$0/fmus" && exec {chroot} "$0" "$@"')
+    prefix = [unshare, "--mount", "--map-root-user", shell, "-c", script, str(root)]
+    (root / "fmus").mkdir(exist_ok=True)
+    probe = subprocess.run(prefix + ["/importer"], capture_output=True, env={})
+    return prefix if probe.returncode in (1, 2) and b"usage" in probe.stderr else None
+
+
 def run_in_root(prefix: list[str], root: Path, lines: list[str], name: str, env: dict | None = None,
                 timeout: float = 600) -> subprocess.CompletedProcess:
     """Run the importer on the script ``lines`` inside ``root`` (environment: ``env``, default empty)."""
