@@ -11,6 +11,7 @@ into them.
 """
 
 import subprocess
+import sys
 import zipfile
 from pathlib import Path
 
@@ -182,3 +183,50 @@ def test_export_standalone_packs_fmus_that_carry_their_runtime(standalone_dir, t
             record = fmu.read("resources/obsfmu_native.txt").decode()
             assert f"runtime={RUNTIME}\n" in record
             assert any(n.startswith(f"resources/{RUNTIME}/lib/libpython") for n in fmu.namelist())
+
+
+PROBE = r'''
+import ctypes, sys
+loader = ctypes.CDLL(sys.argv[1])
+LOGGER = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_char_p)
+class Callbacks(ctypes.Structure):
+    _fields_ = [("logger", LOGGER), ("allocateMemory", ctypes.c_void_p), ("freeMemory", ctypes.c_void_p),
+                ("stepFinished", ctypes.c_void_p), ("componentEnvironment", ctypes.c_void_p)]
+messages = []
+logger = LOGGER(lambda env, name, status, category, message: messages.append((status, message.decode())))
+callbacks = Callbacks(logger, None, None, None, None)
+loader.fmi2Instantiate.restype = ctypes.c_void_p
+loader.fmi2Instantiate.argtypes = [ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_char_p,
+                                   ctypes.POINTER(Callbacks), ctypes.c_int, ctypes.c_int]
+component = loader.fmi2Instantiate(b"probe", 1, sys.argv[2].encode(), sys.argv[3].encode(), ctypes.byref(callbacks), 0, 0)
+print("instance" if component else "NULL")
+for status, message in messages:
+    print(status, message)
+'''
+
+
+def _other_python():
+    """A python of another minor version than this one (pyenv's or on PATH), or None."""
+    import shutil
+    candidates = [shutil.which(f"python3.{minor}") for minor in range(8, 15) if minor != sys.version_info.minor]
+    candidates = [c for c in candidates if c and "/shims/" not in c]   # pyenv's shims answer for one version
+    candidates += sorted(str(p) for p in Path.home().glob(".pyenv/versions/3.*/bin/python3.*")
+                         if not p.name.endswith(("-config", f"3.{sys.version_info.minor}")))
+    return next((c for c in candidates if c and Path(c).is_file()), None)
+
+
+def test_a_python_host_of_another_version_gets_one_message_and_no_instance(standalone_dir, tmp_path):
+    from fmpy import extract, read_model_description
+    other = _other_python()
+    if other is None:
+        pytest.skip("no Python of another minor version on this machine")
+    fmu = ensure_fmus(get("ship"), standalone_dir, standalone=True)["ship_plant"]
+    folder = Path(extract(str(fmu), unzipdir=str(tmp_path / "plant")))
+    guid = read_model_description(str(fmu)).guid
+    completed = subprocess.run([other, "-I", "-c", PROBE, str(folder / "binaries/linux64/ship_plant.so"), guid,
+                                (folder / "resources").as_uri()], capture_output=True, text=True, timeout=120)
+    lines = completed.stdout.splitlines()
+    assert completed.returncode == 0 and lines[0] == "NULL", completed.stdout + completed.stderr
+    assert len(lines) == 2 and lines[1].startswith("3 "), lines     # one message, fmi2Error
+    assert "this process runs Python 3." in lines[1] and f"built for Python 3.{sys.version_info.minor}" in lines[1]
+    assert "a standalone FMU runs its own Python only in a process that runs no Python" in lines[1]
