@@ -3,7 +3,8 @@
  * a pythonfmu Fmi2Slave), compiled against one Python version's headers.
  *
  * It is loaded by the LOADER (loader.c) with RTLD_LOCAL once libpython's symbols are global
- * (in a Python host, or after the loader has loaded libpython); it has no NEEDED entry on
+ * (in a Python host, or after the loader has loaded libpython: the recorded one, started by start(),
+ * or a standalone FMU's own, started isolated by start_isolated()); it has no NEEDED entry on
  * libpython and exports only obsfmu_bridge(), the function table of obsfmu_native.h.  The
  * loader checks the call sequence (FMI state machine) before anything gets here.
  *

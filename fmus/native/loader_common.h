@@ -2,7 +2,8 @@
  * What the FMI 2.0 loader (loader.c) and the FMI 3.0 loader (loader_fmi3.c) share: everything that
  * does not depend on the FMI version (details: docs/portability.md, docs/fmi3.md).
  *
- *   - finding or starting Python and loading the BRIDGE, once per process (get_bridge);
+ *   - finding or starting Python and loading the BRIDGE, once per process (get_bridge); a standalone FMU
+ *     (obsfmu build --standalone) starts the runtime it carries, isolated (load_runtime);
  *   - the CORE of an instance: the bridge's component, the state machine's state and time, where
  *     messages go (an fmi2CallbackFunctions: the FMI 3 loader points it at a trampoline), and the
  *     rule that a FAILED call moves the instance to the version's failure state while a call the
@@ -185,6 +186,14 @@ static int standalone(const char *record)
     return obsfmu_record_value(record, "runtime", runtime, sizeof runtime)[0] != '\0';
 }
 
+/* The folder of a standalone FMU's runtime: <resources>/<runtime> (PATH_SIZE bytes). */
+static void runtime_home(const char *resources, const char *record, char *home)
+{
+    char relative[PATH_SIZE];
+    obsfmu_record_value(record, "runtime", relative, sizeof relative);
+    snprintf(home, PATH_SIZE, "%s/%s", resources, relative);
+}
+
 /* Load the runtime of a standalone FMU: the libraries it bundles (runtime_preload, dependencies first,
  * RTLD_LOCAL: its extension modules find them by soname; one the process already has is kept), then its
  * libpython (RTLD_GLOBAL).  `home` receives the runtime's folder. */
@@ -193,8 +202,7 @@ static void *load_runtime(const char *resources, const char *record, char *home,
 {
     char version[32], relative[PATH_SIZE], preload[PATH_SIZE], path[2 * PATH_SIZE + 2], *next = NULL;
     obsfmu_record_value(record, "python_version", version, sizeof version);
-    obsfmu_record_value(record, "runtime", relative, sizeof relative);
-    snprintf(home, PATH_SIZE, "%s/%s", resources, relative);
+    runtime_home(resources, record, home);
     obsfmu_record_value(record, "runtime_preload", preload, sizeof preload);
     for (char *name = strtok_r(preload, " ", &next); name; name = strtok_r(NULL, " ", &next)) {
         const char *soname = strrchr(name, '/') ? strrchr(name, '/') + 1 : name;
@@ -236,7 +244,8 @@ static const ObsfmuBridge *get_bridge(const char *resources, const char *record,
         }
         must_start = !initialized();
         obsfmu_record_value(record, "python_executable", program, sizeof program);
-        own = 0; /* a process holds one interpreter: the host's */
+        if (!must_start) own = 0;        /* a process holds one interpreter: the host's */
+        else if (own) runtime_home(resources, record, program); /* a libpython not started yet: our runtime's */
     } else if (own ? load_runtime(resources, record, program, &must_start, message, size) == NULL
                    : load_python(record, program, &must_start, message, size) == NULL) {
         goto done;

@@ -129,6 +129,8 @@ def test_every_kind_runs_on_its_pruned_runtime_without_python(root, standalone_d
     lines, kinds = [], first_of_each_kind()
     for kind, (scenario, instance, model, start) in kinds.items():
         fmu = ensure_fmus(scenario, standalone_dir, standalone=True)[model]
+        with zipfile.ZipFile(fmu) as archive:
+            assert not [n for n in archive.namelist() if "/scipy" in n], kind   # no kind imports scipy at run time
         lines += alone_lines(unzip(root_dir, instance, fmu, f"kind_{kind}"), start, 5, scenario.step,
                              f"/out/kind_{kind}.csv")
     completed = run_in_root(prefix, root_dir, lines, "kinds")
@@ -230,3 +232,18 @@ def test_a_python_host_of_another_version_gets_one_message_and_no_instance(stand
     assert len(lines) == 2 and lines[1].startswith("3 "), lines     # one message, fmi2Error
     assert "this process runs Python 3." in lines[1] and f"built for Python 3.{sys.version_info.minor}" in lines[1]
     assert "a standalone FMU runs its own Python only in a process that runs no Python" in lines[1]
+
+
+def test_a_damaged_runtime_is_one_message_and_no_instance(root, standalone_dir):
+    root_dir, prefix = root
+    scenario = get("ship")
+    instance, model, start = scenario.components[0]
+    unzipped = unzip(root_dir, instance, ensure_fmus(scenario, standalone_dir, standalone=True)[model], "damaged")
+    for library in (root_dir / "fmus" / "damaged" / "resources" / RUNTIME / "lib").glob("libpython*"):
+        library.unlink()
+    completed = run_in_root(prefix, root_dir, alone_lines(unzipped, start, 1, scenario.step, "/out/damaged.csv"),
+                            "damaged")
+    assert completed.returncode > 0   # the importer gives up on a NULL instance, alive (no signal)
+    logs = [line for line in completed.stdout.splitlines() if line.startswith("log ")]
+    assert len(logs) == 1 and "the FMU's own Python is damaged: unzip the FMU again" in logs[0], completed.stdout
+    assert f"instantiate {instance} null" in completed.stdout
