@@ -64,11 +64,15 @@ def _system(name: str) -> bool:
     return name.startswith(SYSTEM_LIBRARIES)
 
 
+def _sites() -> list[str]:
+    """The building interpreter's site-packages folders (venv, system, user), in its search order."""
+    return list(dict.fromkeys(p for p in sys.path if Path(p).name in ("site-packages", "dist-packages")))
+
+
 def traced_modules(resources: Path) -> dict[str, Path]:
     """module name -> file of every module the FMU unpacked (its resources) in ``resources`` imports."""
-    sites = sorted({sysconfig.get_paths()["purelib"], sysconfig.get_paths()["platlib"]})
     command = [sys.executable, "-I", "-S", "-X", "utf8", str(Path(__file__).with_name("standalone_trace.py")),
-               str(resources), *sites]
+               str(resources), *_sites()]
     keep = {key: os.environ[key] for key in ("LD_LIBRARY_PATH",) if key in os.environ}  # where libpython may be
     completed = subprocess.run(command, capture_output=True, text=True, env=keep, timeout=600)
     if completed.returncode != 0:
@@ -77,18 +81,18 @@ def traced_modules(resources: Path) -> dict[str, Path]:
     return {name: Path(origin) for name, origin in (line.split("\t", 1) for line in completed.stdout.splitlines())}
 
 
-def _placed(path: Path) -> str | None:
-    """Where a module file of the building Python goes in the runtime (relative to it), or None if it is
-    not the standard library's or an installed package's."""
-    stdlib = Path(sysconfig.get_paths()["stdlib"]).resolve()
-    sites = {Path(sysconfig.get_paths()[key]).resolve() for key in ("purelib", "platlib")}
+def _placed(path: Path) -> tuple[str | None, Path | None]:
+    """Where a module file of the building Python goes in the runtime (relative to it; None if it is not
+    the standard library's or an installed package's) and, for a package's, its top-level folder."""
     path = path.resolve()
-    for site in sites:
-        if path.is_relative_to(site):
-            return f"{_SITE}/{path.relative_to(site).as_posix()}"
+    for site in map(Path, _sites()):
+        if path.is_relative_to(site.resolve()):
+            relative = path.relative_to(site.resolve())
+            return f"{_SITE}/{relative.as_posix()}", site / relative.parts[0]
+    stdlib = Path(sysconfig.get_paths()["stdlib"]).resolve()
     if path.is_relative_to(stdlib) and "site-packages" not in path.relative_to(stdlib).parts:
-        return f"{_STDLIB}/{path.relative_to(stdlib).as_posix()}"
-    return None
+        return f"{_STDLIB}/{path.relative_to(stdlib).as_posix()}", None
+    return None, None
 
 
 @functools.lru_cache(maxsize=4096)
@@ -108,12 +112,12 @@ def _module_files(modules: dict[str, Path], resources: Path) -> tuple[dict[str, 
     for name, path in modules.items():
         if path.is_relative_to(resources) or name == "__main__":
             continue  # the FMU's own code (resources/_obsfmu_<hash>) and the trace script
-        placed = _placed(path)
+        placed, top = _placed(path)
         if placed is None:
             outside.append(f"{name} ({path})")
             continue
-        if placed.startswith(_SITE + "/"):
-            tops.add(Path(sysconfig.get_paths()["platlib"]) / placed[len(_SITE) + 1:].split("/")[0])
+        if top is not None:
+            tops.add(top)
         if path.suffix == ".py":
             files[placed[:-3] + ".pyc"] = _sourceless(path, placed)
         elif path.suffix == ".so":
