@@ -111,7 +111,8 @@ def source_hash(definition: FmuDefinition, extra_modules=(), fmi_version: int = 
     if fmi3.check_version(fmi_version) == 3:
         digest.update(b"FMI 3.0")
     if standalone:
-        digest.update(b"standalone")
+        from .standalone import identity
+        digest.update(identity())
     for key, value in sorted(vars(definition).items()):
         if key != "kind_module":  # filled in while building
             digest.update(f"{key}={value!r}".encode())

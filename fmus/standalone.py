@@ -41,7 +41,7 @@ from pathlib import Path
 from . import native
 from .native.bootstrap import RUNTIME_DESCRIPTION
 
-__all__ = ["StandaloneError", "with_runtime", "runtime_files", "describe", "SYSTEM_LIBRARIES", "RUNTIME"]
+__all__ = ["StandaloneError", "with_runtime", "runtime_files", "identity", "describe", "SYSTEM_LIBRARIES", "RUNTIME"]
 
 #: the folder of the runtime inside resources/
 RUNTIME = "python"
@@ -240,6 +240,14 @@ def with_runtime(files: dict[str, bytes], record_name: str) -> dict[str, bytes |
 
 def record_lines(record: dict[str, str]) -> str:
     return "".join(f"{key}={value}\n" for key, value in record.items())
+
+
+def identity() -> bytes:
+    """What a standalone FMU's runtime depends on beyond the default build: this module, the trace, numpy's version."""
+    import numpy
+    here = Path(__file__)
+    return (here.read_bytes() + here.with_name("standalone_trace.py").read_bytes()
+            + f"numpy {numpy.__version__}".encode())
 
 
 def describe(fmu: Path) -> dict[str, int]:
