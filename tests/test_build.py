@@ -52,7 +52,7 @@ def test_validation_reports_exactly_what_fmpy_reports(ship_fmus, tmp_path):
 def test_build_builds_and_validates_each_distinct_fmu_once(monkeypatch, tmp_path, capsys):
     built, validated = [], []
 
-    def fake_build(definition, out_dir, extra_modules=(), fmi_version=2):
+    def fake_build(definition, out_dir, extra_modules=(), fmi_version=2, standalone=False):
         built.append(definition.model_name)
         path = Path(out_dir) / f"{definition.model_name}.fmu"
         path.parent.mkdir(parents=True, exist_ok=True)

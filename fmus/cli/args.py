@@ -12,7 +12,7 @@ from pathlib import Path
 from ..master import COUPLINGS
 
 __all__ = ["Parser", "Duration", "positive", "positive_int", "duration", "scenario_times",
-           "add_scenario_arguments", "add_fmi_version", "add_jobs_argument", "cpus", "DEFAULT_BUILD", "DEFAULT_RESULTS", "EXIT_USAGE",
+           "add_scenario_arguments", "add_fmi_version", "add_standalone", "add_jobs_argument", "cpus", "DEFAULT_BUILD", "DEFAULT_RESULTS", "EXIT_USAGE",
            "TIME_UNITS"]
 
 DEFAULT_BUILD = Path("build")
@@ -105,6 +105,13 @@ def add_fmi_version(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--fmi-version", type=int, choices=(2, 3), default=2,
                         help="FMI version of the FMUs: 2 (default) or 3 (array variables; FMI 3.0 FMUs are built "
                              "into <build dir>/fmi3; see docs/fmi3.md)")
+
+
+def add_standalone(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--standalone", action="store_true",
+                        help="FMUs that carry their own Python runtime (libpython, the standard library and numpy "
+                             "modules their code imports, the libraries those load: ~19 MB each): they run on a "
+                             "Linux x86-64 machine with nothing installed; see docs/portability.md")
 
 
 def cpus() -> int:

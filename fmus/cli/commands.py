@@ -8,7 +8,7 @@ from pathlib import Path
 from ..master import ORDERS
 from ..output import check_directory, check_file
 from .args import (DEFAULT_BUILD, DEFAULT_RESULTS, add_fmi_version, add_jobs_argument, add_scenario_arguments,
-                   duration, positive, scenario_times)
+                   add_standalone, duration, positive, scenario_times)
 from .runs import build_all, figure_paths, report_built, report_interrupted, run_one, run_scenario
 from .stopping import StopRequest
 from .subcommand import Subcommand
@@ -36,10 +36,10 @@ def cmd_build(args) -> int:
         design = design_from_config(load_config(args.config))
     out = check_directory("--out", args.out)
     if design:
-        paths = [build_fmu(definition, build_folder(out, args.fmi_version), fmi_version=args.fmi_version)
-                 for definition in design.definitions()]
+        paths = [build_fmu(definition, build_folder(out, args.fmi_version), fmi_version=args.fmi_version,
+                           standalone=args.standalone) for definition in design.definitions()]
     else:
-        paths = build_all(out, args.fmi_version)
+        paths = build_all(out, args.fmi_version, args.standalone)
     return 1 if report_built(paths) else 0
 
 
@@ -91,7 +91,7 @@ def cmd_export(args) -> int:
     build_dir = check_directory("--build-dir", args.build_dir, writable=False)
     path = export(scenario, args.format, out, build_dir, step=times["step"], stop_time=times["stop_time"],
                   overrides=scenarios.parse_overrides(args.set or []), coupling=args.coupling,
-                  fmi_version=args.fmi_version, system_outputs=args.system_outputs)
+                  fmi_version=args.fmi_version, system_outputs=args.system_outputs, standalone=args.standalone)
     print(f"wrote {path}")
     return 0
 
@@ -150,6 +150,7 @@ def configure_build(parser) -> None:
     parser.add_argument("--out", default=str(DEFAULT_BUILD), metavar="DIR",
                         help="directory for the FMUs (created if missing; default: build)")
     add_fmi_version(parser)
+    add_standalone(parser)
 
 
 def configure_run(parser) -> None:
@@ -180,6 +181,7 @@ def configure_export(parser) -> None:
     parser.add_argument("--no-system-outputs", dest="system_outputs", action="store_false",
                         help="ssp: no connections to the system's output connectors (libcosim and ECOS reject "
                              "them; FMU Manipulation Toolbox needs them to expose the outputs)")
+    add_standalone(parser)
 
 
 def configure_all(parser) -> None:

@@ -33,10 +33,11 @@ def report_built(paths) -> int:
     return failures
 
 
-def build_all(build_dir: Path, fmi_version: int = 2) -> list[Path]:
+def build_all(build_dir: Path, fmi_version: int = 2, standalone: bool = False) -> list[Path]:
     """Every distinct FMU of the scenarios, each built once (ltv-ls and ltv-ls-bounded share theirs)."""
     from ..scenarios import SCENARIOS, ensure_all
-    return list(ensure_all(SCENARIOS.values(), build_dir, force=True, fmi_version=fmi_version).values())
+    return list(ensure_all(SCENARIOS.values(), build_dir, force=True, fmi_version=fmi_version,
+                           standalone=standalone).values())
 
 
 def figure_paths(option: str, path: str) -> list[Path]:
