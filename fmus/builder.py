@@ -11,7 +11,9 @@ An FMU built here contains (layout and reasons: ``docs/portability.md``):
   of, for :func:`is_current`), ``obsfmu_native.txt`` (GUID, the Python to use, where the slave
   is) and the bundled code relocated under ``_obsfmu_<hash>/`` (:mod:`fmus.bundle`): the project
   packages, pythonfmu's slave base class and the user's extra modules.  The FMU runs in any
-  Python environment with numpy and scipy -- not only inside a checkout.
+  Python environment with numpy and scipy -- not only inside a checkout;
+* ``resources/python/`` -- only with ``standalone=True``: the Python runtime the FMU's code imports
+  (:mod:`fmus.standalone`), so the FMU runs where no Python is installed.
 """
 
 from __future__ import annotations
@@ -104,11 +106,14 @@ def _bundle(extra_modules=()) -> tuple[str, dict[str, bytes]]:
     return _relocated(_code_hash(sources), sources)
 
 
-def source_hash(definition: FmuDefinition, extra_modules=(), fmi_version: int = 2) -> str:
+def source_hash(definition: FmuDefinition, extra_modules=(), fmi_version: int = 2, standalone: bool = False) -> str:
     """Hash of the definition, of the bundled code and of the native binaries (with their Python)."""
     digest = hashlib.sha256(definition.kind.encode())
     if fmi3.check_version(fmi_version) == 3:
         digest.update(b"FMI 3.0")
+    if standalone:
+        from .standalone import identity
+        digest.update(identity())
     for key, value in sorted(vars(definition).items()):
         if key != "kind_module":  # filled in while building
             digest.update(f"{key}={value!r}".encode())
@@ -133,13 +138,15 @@ def _record(**values: str) -> str:
             + "".join(f"{key}={value}\n" for key, value in values.items()))
 
 
-def build_fmu(definition: FmuDefinition, out_dir: Path | str, extra_modules=(), fmi_version: int = 2) -> Path:
+def build_fmu(definition: FmuDefinition, out_dir: Path | str, extra_modules=(), fmi_version: int = 2,
+              standalone: bool = False) -> Path:
     """Build ``<out_dir>/<model_name>.fmu`` and return its path.
 
     ``extra_modules`` are the user's ``.py`` files or package directories that
     the definition's ``"module:function"`` references need (see
     :mod:`fmus.runtime.callables`); they are bundled next to the project packages.
     ``fmi_version`` 3 builds an FMI 3.0 FMU of the same definition (:mod:`fmus.fmi3`).
+    ``standalone``: the FMU carries the Python runtime its code imports (:mod:`fmus.standalone`).
     The FMU file appears only once it is complete.
     """
     fmi_version = fmi3.check_version(fmi_version)
@@ -175,13 +182,16 @@ def build_fmu(definition: FmuDefinition, out_dir: Path | str, extra_modules=(), 
             "modelDescription.xml": description,
             f"resources/{model}.json": definition.to_json().encode(),
             "resources/build_info.json": json.dumps({"source_hash": source_hash(definition, extra_modules,
-                                                                                fmi_version)}).encode(),
+                                                                                fmi_version, standalone)}).encode(),
             "resources/obsfmu_native.txt": record.encode(),
             "resources/obsfmu_bootstrap.py": native.BOOTSTRAP.read_bytes(),
             f"resources/{package}/_slave_{model}.py": SLAVE_TEMPLATE.format(model=model, json=f"{model}.json").encode(),
             **{f"resources/{name}": data for name, data in bundled.items()},
             **extra,
         }
+        if standalone:
+            from .standalone import with_runtime
+            files = with_runtime(files, "resources/obsfmu_native.txt")
     handle, name = tempfile.mkstemp(prefix=f".{model}.", suffix=".fmu.partial", dir=out_dir)
     os.fchmod(handle, file_mode())      # the mode of every other result (umask), not mkstemp's 0600
     os.close(handle)
@@ -189,7 +199,10 @@ def build_fmu(definition: FmuDefinition, out_dir: Path | str, extra_modules=(), 
     try:
         with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as archive:
             for name, data in files.items():
-                archive.writestr(name, data)
+                if isinstance(data, Path):
+                    archive.write(data, name)
+                else:
+                    archive.writestr(name, data)
             archive.write(loader, f"{binaries}/{model}{loader.suffix}")
             archive.write(bridge, f"{binaries}/{native.bridge_name()}")
         target = out_dir / f"{model}.fmu"
@@ -199,11 +212,13 @@ def build_fmu(definition: FmuDefinition, out_dir: Path | str, extra_modules=(), 
     return target
 
 
-def is_current(fmu: Path, definition: FmuDefinition, extra_modules=(), fmi_version: int = 2) -> bool:
-    """True when ``fmu`` exists and was built from this definition, code, binaries, Python and FMI version."""
+def is_current(fmu: Path, definition: FmuDefinition, extra_modules=(), fmi_version: int = 2,
+               standalone: bool = False) -> bool:
+    """True when ``fmu`` exists and was built from this definition, code, binaries, Python, FMI version and
+    build (standalone or not)."""
     try:
         with zipfile.ZipFile(fmu) as archive:
             info = json.loads(archive.read("resources/build_info.json"))
     except (FileNotFoundError, KeyError, zipfile.BadZipFile, json.JSONDecodeError):
         return False
-    return info.get("source_hash") == source_hash(definition, extra_modules, fmi_version)
+    return info.get("source_hash") == source_hash(definition, extra_modules, fmi_version, standalone)

@@ -67,7 +67,8 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-__all__ = ["LinearDesign", "load_config", "design_from_config", "MAX_DIMENSION"]
+__all__ = ["LinearDesign", "load_config", "design_from_config", "design_gain", "require_bounded_transient",
+           "MAX_DIMENSION"]
 
 MAX_DIMENSION = 200  #: states, inputs and outputs of a design, each (its FMUs: a variable per matrix entry)
 MAX_FILE_BYTES = 4 * 2**20  #: a design file (200 states at 17 digits: about 1 MB)
@@ -222,7 +223,7 @@ def _shifted(name: str, A: np.ndarray, shift) -> np.ndarray:
     return eigenvalues - shift
 
 
-def _gain(section: str, table: dict, model: StateSpace, gain_name: str, shape, designer):
+def design_gain(section: str, table: dict, model: StateSpace, gain_name: str, shape, designer):
     """A gain given directly (checked: Hurwitz) or designed from poles / t_settle / shift.
 
     A designed gain is also checked for transient growth (:func:`observers.modal.transient_growth`).
@@ -250,7 +251,7 @@ def _gain(section: str, table: dict, model: StateSpace, gain_name: str, shape, d
     return gain, poles
 
 
-def _require_bounded_transient(name: str, closed_loop: np.ndarray) -> None:
+def require_bounded_transient(name: str, closed_loop: np.ndarray) -> None:
     growth = transient_growth(closed_loop)
     if growth > MAX_TRANSIENT_GROWTH:
         raise ParameterError(
@@ -288,11 +289,11 @@ def design_from_config(config: dict) -> LinearDesign:
     if not is_observable(model.A, model.C):
         raise ParameterError("plant.C: the pair (plant.A, plant.C) is not observable; "
                              "no observer can reconstruct the state")
-    N, observer_poles = _gain("observer", observer, model, "N", (n, model.p),
+    N, observer_poles = design_gain("observer", observer, model, "N", (n, model.p),
                               lambda poles, name: observer_gain(model.A, model.C, poles, name))
     require_hurwitz("observer.N (A - N C)", model.A - N @ model.C)
     if observer_poles is not None:
-        _require_bounded_transient("observer.poles", model.A - N @ model.C)
+        require_bounded_transient("observer.poles", model.A - N @ model.C)
     if observer_poles is None:
         observer_poles = np.linalg.eigvals(model.A - N @ model.C)
 
@@ -305,11 +306,11 @@ def design_from_config(config: dict) -> LinearDesign:
         if not is_controllable(model.A, model.B):
             raise ParameterError("plant.B: the pair (plant.A, plant.B) is not controllable; "
                                  "state feedback cannot place the poles")
-        K, controller_poles = _gain("controller", controller, model, "K", (model.m, n),
+        K, controller_poles = design_gain("controller", controller, model, "K", (model.m, n),
                                     lambda poles, name: place(model.A, model.B, poles, name))
         require_hurwitz("controller.K (A - B K)", model.A - model.B @ K)
         if controller_poles is not None:
-            _require_bounded_transient("controller.poles", model.A - model.B @ K)
+            require_bounded_transient("controller.poles", model.A - model.B @ K)
 
     build_plant = plant.get("fmu", True)
     if not isinstance(build_plant, bool):

@@ -264,11 +264,13 @@ def _ssd(exported: _Exported, scenario: Scenario, step: float, stop_time: float,
 
 def export(scenario: Scenario, fmt: str, out_dir: Path | str, build_dir: Path | str = "build", *,
            step: float | None = None, stop_time: float | None = None, overrides=(),
-           coupling: str | None = None, fmi_version: int = 2, system_outputs: bool = True) -> Path:
+           coupling: str | None = None, fmi_version: int = 2, system_outputs: bool = True,
+           standalone: bool = False) -> Path:
     """Write the scenario for another tool; returns the ``.xml`` (osp) or ``.ssp`` file.
 
     ``fmi_version`` 3 exports the scenario's FMI 3.0 FMUs (SSP only).  ``system_outputs=False``
     leaves out the SSD's connections to the system's output connectors (for libcosim and ECOS).
+    ``standalone``: the FMUs carry their Python (:mod:`fmus.standalone`).
     """
     if fmt not in FORMATS:
         raise SimulationError(f"format: {fmt!r} is not one of {FORMATS}")
@@ -281,7 +283,7 @@ def export(scenario: Scenario, fmt: str, out_dir: Path | str, build_dir: Path | 
         raise SimulationError(f"coupling: {coupling!r} is not one of {COUPLINGS}")
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    fmus = ensure_fmus(scenario, Path(build_dir), fmi_version=fmi_version)
+    fmus = ensure_fmus(scenario, Path(build_dir), fmi_version=fmi_version, standalone=standalone)
     exported = _Exported(scenario, fmus, overrides, coupling or scenario.coupling)
     if fmt == "osp":
         return _osp(exported, scenario, out_dir, step)

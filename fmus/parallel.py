@@ -1,7 +1,7 @@
 """``obsfmu all --jobs N``: the scenarios in N worker processes, the longest first.
 
 Each worker runs one scenario at a time exactly as the sequential loop does
-(:func:`fmus.cli._run_one`: the same CSV, figures, summary and record), with what it prints captured;
+(:func:`fmus.cli.runs.run_one`: the same CSV, figures, summary and record), with what it prints captured;
 the parent prints each scenario's output in the order of ``names`` as soon as it and every scenario
 before it are done, and writes the report when all are.  The longest scenario (most communication
 steps) starts first, so it does not end up alone at the end.
@@ -12,7 +12,7 @@ steps) starts first, so it does not end up alone at the end.
 * **Ctrl-C** goes to the whole foreground process group.  Workers start with SIGINT ignored (no
   traceback while they boot), then take it like the parent, silently: the first stops the run after
   the current communication step (the rows so far kept in ``NAME.partial.csv``), a second kills the
-  worker.  The parent's first Ctrl-C (:class:`fmus.cli.StopRequest`) also sets a shared flag every
+  worker.  The parent's first Ctrl-C (:class:`fmus.cli.stopping.StopRequest`) also sets a shared flag every
   worker asks after each communication point (for a SIGINT sent to the parent alone) and cancels the
   scenarios not started yet; the exit code is 130.  SIGTERM and SIGHUP are taken the same way (exit
   128 + the signal: 143, 129).
@@ -34,7 +34,7 @@ from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from pathlib import Path
 
-from .cli import EXIT_USAGE
+from .cli.args import EXIT_USAGE
 
 __all__ = ["run_in_workers", "cost"]
 
@@ -67,14 +67,14 @@ _STOP = None  #: the worker's StopRequest (own SIGINT or the parent's shared fla
 
 def _start_worker(flag) -> None:
     global _STOP
-    from .cli import StopRequest
+    from .cli.stopping import StopRequest
     _STOP = StopRequest(quiet=True, shared=flag).__enter__()
 
 
 def _job(out: Path, build_dir: Path, name: str, settings: dict | None) -> Finished:
     from observers.checks import ParameterError
 
-    from .cli import _run_one
+    from .cli.runs import run_one
     from .master import SimulationError
     from .output import OutputError
 
@@ -84,7 +84,7 @@ def _job(out: Path, build_dir: Path, name: str, settings: dict | None) -> Finish
     status, error = 0, None
     with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
         try:
-            status = _run_one(out, build_dir, name, _STOP, settings)
+            status = run_one(out, build_dir, name, _STOP, settings)
         except (ParameterError, SimulationError, OutputError) as exc:
             error = str(exc)
     return Finished(name, status, stdout.getvalue(), stderr.getvalue(), error)

@@ -11,7 +11,7 @@ from fmpy.validation import _validate_variable_names
 from fmpy.validation import validate_fmu as fmpy_validate
 
 import fmus.scenarios as scenarios
-from fmus import cli
+from fmus.cli import main as cli, runs
 from fmus.master import SimulationError
 from fmus.validation import plain_name, validate_fmu
 
@@ -52,7 +52,7 @@ def test_validation_reports_exactly_what_fmpy_reports(ship_fmus, tmp_path):
 def test_build_builds_and_validates_each_distinct_fmu_once(monkeypatch, tmp_path, capsys):
     built, validated = [], []
 
-    def fake_build(definition, out_dir, extra_modules=(), fmi_version=2):
+    def fake_build(definition, out_dir, extra_modules=(), fmi_version=2, standalone=False):
         built.append(definition.model_name)
         path = Path(out_dir) / f"{definition.model_name}.fmu"
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -61,7 +61,7 @@ def test_build_builds_and_validates_each_distinct_fmu_once(monkeypatch, tmp_path
 
     monkeypatch.setattr(scenarios, "build_fmu", fake_build)
     monkeypatch.setattr(scenarios, "_damage", lambda path: None)   # the fakes are empty files
-    monkeypatch.setattr(cli, "_validate", lambda path: validated.append(Path(path).stem) or [])
+    monkeypatch.setattr(runs, "validate", lambda path: validated.append(Path(path).stem) or [])
     assert cli.main(["build", "--out", str(tmp_path)]) == 0
     distinct = {item.model_name if not isinstance(item, tuple) else item[0].model_name
                 for scenario in scenarios.SCENARIOS.values() for item in scenario.definitions()}

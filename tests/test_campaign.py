@@ -12,7 +12,7 @@ import numpy as np
 import pyarrow.dataset as ds
 import pytest
 
-from fmus import cli
+from fmus.cli import main as cli
 from fmus.campaign.design import Campaign
 from fmus.campaign.errors import CampaignError
 from fmus.campaign.measures import Measure, measure_for

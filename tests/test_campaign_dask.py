@@ -22,7 +22,7 @@ from pathlib import Path
 import distributed
 import pytest
 
-from fmus import cli
+from fmus.cli import main as cli
 from fmus.campaign.design import Campaign
 from fmus.campaign.runner import local_cluster, run_campaign
 from fmus.campaign.store import load_rows

@@ -16,7 +16,10 @@ import numpy as np
 import pytest
 from fmpy import read_model_description
 
-from fmus import cli
+from fmus.cli import main as cli
+from fmus.cli import commands
+from fmus.cli.commands import run_into
+from fmus.cli.stopping import StopRequest
 from fmus.result import Result
 from fmus.scenarios import SCENARIOS, ensure_fmus, get
 
@@ -245,8 +248,8 @@ SHORT_ALL = {"discrete-gpebo": {"stop_time": 10.0}, "ship": {"stop_time": 0.05}}
 
 def _run_all_short(out, build_dir, jobs, settings=SHORT_ALL) -> int:
     out.mkdir()
-    with cli.StopRequest() as stop:
-        return cli._run_into(out, build_dir, list(settings), stop, jobs, settings)
+    with StopRequest() as stop:
+        return run_into(out, build_dir, list(settings), stop, jobs, settings)
 
 
 def _record(path):
@@ -282,7 +285,7 @@ def test_all_in_two_worker_processes_writes_and_prints_what_one_process_does(bui
 def test_report_runs_the_missing_scenarios_in_its_jobs(tmp_path, monkeypatch):
     """``obsfmu report --jobs N`` hands the scenarios without results to the runner of ``obsfmu all --jobs N``."""
     calls = []
-    monkeypatch.setattr(cli, "_run_and_report", lambda out, build_dir, names, jobs=1: calls.append((names, jobs)) or 0)
+    monkeypatch.setattr(commands, "run_and_report", lambda out, build_dir, names, jobs=1: calls.append((names, jobs)) or 0)
     assert cli.main(["report", "--out", str(tmp_path / "r"), "--build-dir", str(tmp_path / "b"), "--jobs", "2"]) == 0
     assert calls == [(list(SCENARIOS), 2)]
 
@@ -301,12 +304,13 @@ _INTERRUPTIBLE = """
 import sys
 from pathlib import Path
 
-from fmus import cli
+from fmus.cli.commands import run_into
+from fmus.cli.stopping import StopRequest
 
 if __name__ == "__main__":   # the workers are spawned: they import this file as a module
     settings = {"ship": {"stop_time": 1e5, "step": 1e-3}, "uio-ftdrem": {"stop_time": 1e5}}   # run until stopped
-    with cli.StopRequest() as stop:
-        sys.exit(cli._run_into(Path(sys.argv[1]), Path(sys.argv[2]), list(settings), stop, 2, settings))
+    with StopRequest() as stop:
+        sys.exit(run_into(Path(sys.argv[1]), Path(sys.argv[2]), list(settings), stop, 2, settings))
 """
 
 

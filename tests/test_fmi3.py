@@ -20,7 +20,7 @@ from fmpy.fmi2 import FMU2Slave
 from fmpy.fmi3 import FMU3Slave
 from fmpy.validation import validate_fmu
 
-from fmus import cli
+from fmus.cli import main as cli
 from fmus.fmi3.elements import elements
 from fmus.master import cosimulate
 from fmus.scenarios import SCENARIOS, ensure_fmus, get, run, system

@@ -251,7 +251,7 @@ def test_an_fmu_bundles_only_the_runtime_part_of_fmus(ship_fmus):
     bundled = {n.split("/", 2)[2] for n in names if n.startswith("resources/_obsfmu_") and "/fmus/" in n}
     assert "fmus/runtime/slave/__init__.py" in bundled and "fmus/runtime/kinds/linear.py" in bundled
     assert all(name == "fmus/__init__.py" or name.startswith("fmus/runtime/") for name in bundled), sorted(bundled)
-    assert not {"fmus/master/__init__.py", "fmus/master/session.py", "fmus/cli.py",
+    assert not {"fmus/master/__init__.py", "fmus/master/session.py", "fmus/cli/main.py",
                 "fmus/scenarios/__init__.py"} & bundled
 
 

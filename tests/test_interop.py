@@ -15,7 +15,7 @@ from xml.etree import ElementTree
 import numpy as np
 import pytest
 
-from fmus import cli
+from fmus.cli import main as cli
 from fmus.export import export
 from fmus.master import cosimulate
 from fmus.scenarios import ensure_fmus, get, run, system

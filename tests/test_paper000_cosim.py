@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from fmpy.validation import validate_fmu
 
-from fmus import cli
+from fmus.cli import main as cli
 from fmus.master import SimulationError
 from fmus.scenarios import ensure_fmus, get, run
 from fmus.scenarios.discrete_gpebo import plant_residual

@@ -11,7 +11,7 @@ from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 from fmpy.validation import validate_fmu
 
-from fmus import cli
+from fmus.cli import main as cli
 from fmus.runtime.kinds.ltv import ltv_observer_definition, ltv_plant_definition
 from fmus.master import SimulationError
 from fmus.metrics import time_to_stay_below

@@ -13,7 +13,7 @@ from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import FMU2Slave
 from fmpy.validation import validate_fmu
 
-from fmus import cli
+from fmus.cli import main as cli
 from fmus.metrics import time_to_stay_below
 from fmus.result import Result
 from fmus.scenarios import ensure_fmus, get, run

@@ -16,7 +16,8 @@ import pytest
 from fmpy import read_model_description
 from scipy.linalg import expm
 
-from fmus import cli, plotting, report
+from fmus import plotting, report
+from fmus.cli import main as cli
 from fmus.scenarios import SCENARIOS, get, run
 
 #: short runs: enough for every panel to have data, cheap enough for the suite

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from fmus import cli
+from fmus.cli import main as cli
 from fmus.result import Result
 from fmus.scenarios import ensure_fmus, get, run
 from fmus.scenarios.ship import paper_table

@@ -1,4 +1,4 @@
-"""``obsfmu sweep``: the campaign's command line (registered with :func:`fmus.cli.register` on import)."""
+"""``obsfmu sweep``: the campaign's command line (:data:`SUBCOMMAND`, listed by :mod:`fmus.cli.main`)."""
 
 from __future__ import annotations
 
@@ -6,7 +6,9 @@ import argparse
 import sys
 from pathlib import Path
 
-__all__ = ["configure", "cmd_sweep"]
+from ..cli.subcommand import Subcommand
+
+__all__ = ["configure", "cmd_sweep", "SUBCOMMAND"]
 
 EXAMPLES = """examples:
   obsfmu sweep ltv-ls-bounded --vary 'plant.k[1]=uniform(-4,-2)' --vary 'plant.x0[1]=normal(2,0.5)' \\
@@ -21,7 +23,7 @@ Rerunning the same command computes only the samples missing from --out.  See do
 
 def configure(sweep: argparse.ArgumentParser) -> None:
     """The options of ``obsfmu sweep``."""
-    from ..cli import _duration, _positive_int
+    from ..cli.args import duration, positive_int
     from ..master import COUPLINGS, ORDERS
 
     sweep.add_argument("scenario", nargs="?", help="scenario name (obsfmu list); optional with --config")
@@ -30,10 +32,10 @@ def configure(sweep: argparse.ArgumentParser) -> None:
                        "options given here override it")
     sweep.add_argument("--vary", action="append", metavar="INSTANCE.VAR=SPEC",
                        help="a varied parameter, e.g. plant.k[1]=-3:3:7 or 'plant.x0[1]=uniform(-1,1)' (repeatable)")
-    sweep.add_argument("--samples", type=_positive_int, help="number of random draws (with random specs)")
+    sweep.add_argument("--samples", type=positive_int, help="number of random draws (with random specs)")
     sweep.add_argument("--seed", type=int, help="seed of the random draws (default 0)")
     where = sweep.add_mutually_exclusive_group()
-    where.add_argument("--workers", type=_positive_int, help="worker processes of the local Dask cluster "
+    where.add_argument("--workers", type=positive_int, help="worker processes of the local Dask cluster "
                        "(default: the machine's cores)")
     where.add_argument("--scheduler", metavar="ADDR", help="address of a running Dask scheduler, "
                        "e.g. tcp://HOST:8786 (see 'dask scheduler' / 'dask worker')")
@@ -43,9 +45,9 @@ def configure(sweep: argparse.ArgumentParser) -> None:
                             "port sees the workers and the tasks).  Default: 127.0.0.1 on a free port, not "
                             "announced; the scheduler and workers listen on 127.0.0.1 only, always")
     sweep.add_argument("--out", help="campaign directory (default: results/sweep-SCENARIO)")
-    sweep.add_argument("--stop-time", type=_duration, help="stop time (default: the scenario's), in its unit of "
+    sweep.add_argument("--stop-time", type=duration, help="stop time (default: the scenario's), in its unit of "
                        "time unless given: 30, 90min")
-    sweep.add_argument("--step", type=_duration, help="communication step (default: the scenario's), "
+    sweep.add_argument("--step", type=duration, help="communication step (default: the scenario's), "
                        "same units")
     sweep.add_argument("--master", choices=ORDERS, help="stepping order (default: the scenario's)")
     sweep.add_argument("--tol", type=float, help="adaptive master: error per unit step (default 1e-6)")
@@ -118,10 +120,10 @@ def campaign_from_args(args):
 def _with_times(campaign, args):
     """``--stop-time``/``--step`` in the scenario's unit of time (as for ``obsfmu run``)."""
     from .. import scenarios
-    from ..cli import _times
+    from ..cli.args import scenario_times
 
     if args.stop_time is not None or args.step is not None:
-        times = _times(args, scenarios.get(campaign.scenario))
+        times = scenario_times(args, scenarios.get(campaign.scenario))
         for key in ("stop_time", "step"):
             if times[key] is not None:
                 setattr(campaign, key, times[key])
@@ -129,7 +131,7 @@ def _with_times(campaign, args):
 
 
 def cmd_sweep(args) -> int:
-    from ..cli import interrupted_status
+    from ..cli.stopping import interrupted_status
     from .runner import run_campaign
     from .table import summary_text
 
@@ -155,12 +157,8 @@ def cmd_sweep(args) -> int:
     return 0
 
 
-def _register() -> None:
-    from ..cli import register
-    register("sweep", "run a scenario over many parameter values on Dask (grid / Monte-Carlo study)", configure,
-             cmd_sweep, epilog="Sweep or Monte-Carlo study of a scenario: one row per sample (inputs, status, "
-             "convergence time, final error, the scenario's summary metrics) in OUT/samples (Parquet) and "
-             "OUT/samples.csv, a summary and figures.\n\n" + EXAMPLES)
-
-
-_register()
+SUBCOMMAND = Subcommand(
+    "sweep", "run a scenario over many parameter values on Dask (grid / Monte-Carlo study)", configure, cmd_sweep,
+    epilog="Sweep or Monte-Carlo study of a scenario: one row per sample (inputs, status, convergence time, final "
+           "error, the scenario's summary metrics) in OUT/samples (Parquet) and OUT/samples.csv, a summary and "
+           "figures.\n\n" + EXAMPLES)

@@ -17,10 +17,14 @@ import importlib.util
 import os
 import sys
 
+#: the file that marks a standalone FMU's runtime (resources/python/, written by fmus/standalone.py)
+RUNTIME_DESCRIPTION = "obsfmu_runtime.txt"
+
 
 def load_slave_class(resources: str, package: str, module: str, name: str) -> type:
     """Import ``<package>.<module>`` from ``<resources>/<package>`` and return its class ``name``."""
     directory = os.path.join(resources, package)
+    _join_runtime(resources)
     bundle = sys.modules.get(package)
     if bundle is None:
         spec = importlib.util.spec_from_file_location(package, os.path.join(directory, "__init__.py"),
@@ -44,6 +48,33 @@ def load_slave_class(resources: str, package: str, module: str, name: str) -> ty
                               "installation or virtual environment that has them") from exc
         raise
     return getattr(slave, name)
+
+
+def _join_runtime(resources: str) -> None:
+    """A standalone FMU (fmus/standalone.py) in an interpreter that another standalone FMU's runtime runs:
+    this FMU's runtime folders join the module search path after the running one's, and the folders of
+    the packages imported from the running runtime (numpy, ...) join their ``__path__`` -- each runtime
+    holds only the modules its own FMU imports."""
+    if not (sys.flags.isolated and os.path.isfile(os.path.join(sys.prefix, RUNTIME_DESCRIPTION))):
+        return  # not a standalone runtime: the host's interpreter, or the one recorded at the build
+    record = {}
+    with open(os.path.join(resources, "obsfmu_native.txt"), encoding="utf-8") as file:
+        for line in file:
+            key, _, value = line.rstrip("\n").partition("=")
+            record.setdefault(key, value)
+    home = os.path.join(resources, record.get("runtime", ""))
+    if not record.get("runtime") or os.path.realpath(home) == os.path.realpath(sys.prefix):
+        return
+    relative = record["runtime_path"].split(":")
+    pairs = [(os.path.join(sys.prefix, r) + os.sep, os.path.join(home, r) + os.sep) for r in relative]
+    sys.path.extend(p for p in (os.path.join(home, r) for r in relative) if p not in sys.path)
+    for module in list(sys.modules.values()):
+        path = getattr(module, "__path__", None)
+        for entry in list(path) if isinstance(path, list) else ():
+            for running, own in pairs:
+                folder = own + entry[len(running):] if entry.startswith(running) else None
+                if folder and folder not in path and os.path.isdir(folder):
+                    path.append(folder)
 
 
 def _add_extraction(package: str, directory: str) -> None:

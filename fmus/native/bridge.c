@@ -3,7 +3,8 @@
  * a pythonfmu Fmi2Slave), compiled against one Python version's headers.
  *
  * It is loaded by the LOADER (loader.c) with RTLD_LOCAL once libpython's symbols are global
- * (in a Python host, or after the loader has loaded libpython); it has no NEEDED entry on
+ * (in a Python host, or after the loader has loaded libpython: the recorded one, started by start(),
+ * or a standalone FMU's own, started isolated by start_isolated()); it has no NEEDED entry on
  * libpython and exports only obsfmu_bridge(), the function table of obsfmu_native.h.  The
  * loader checks the call sequence (FMI state machine) before anything gets here.
  *
@@ -356,25 +357,67 @@ static void free_component(Component *c)
 
 /* ------------------------------------------------------------------ start-up */
 
-static int start(const char *program, char *message, size_t size)
+/* Start the interpreter of `config` (cleared here) unless `status` is an exception already; 0 on success. */
+static int start_from(PyConfig *config, PyStatus status, const char *where, char *message, size_t size)
 {
-    PyConfig config;
-    PyConfig_InitPythonConfig(&config);
-    config.install_signal_handlers = 0; /* the host owns the signals */
-    config.parse_argv = 0;
-    config.use_environment = 0;         /* PYTHONHOME/PYTHONPATH of the host are not ours */
-    config.configure_c_stdio = 0;
-    config.pathconfig_warnings = 0;     /* failures are reported through the FMI logger */
-    PyStatus status = PyConfig_SetBytesString(&config, &config.program_name, program);
-    if (!PyStatus_Exception(status)) status = Py_InitializeFromConfig(&config);
-    PyConfig_Clear(&config);
+    config->install_signal_handlers = 0; /* the host owns the signals */
+    config->parse_argv = 0;
+    config->use_environment = 0;         /* PYTHONHOME/PYTHONPATH of the host are not ours */
+    config->configure_c_stdio = 0;
+    config->pathconfig_warnings = 0;     /* failures are reported through the FMI logger */
+    if (!PyStatus_Exception(status)) status = Py_InitializeFromConfig(config);
+    PyConfig_Clear(config);
     if (PyStatus_Exception(status)) {
-        snprintf(message, size, "starting Python from %s failed: %s%s%s", program, status.func ? status.func : "",
+        snprintf(message, size, "starting Python from %s failed: %s%s%s", where, status.func ? status.func : "",
                  status.func ? ": " : "", status.err_msg ? status.err_msg : "unknown error");
         return -1;
     }
     PyEval_SaveThread(); /* every call takes the GIL with PyGILState_Ensure; never finalized */
     return 0;
+}
+
+static int start(const char *program, char *message, size_t size)
+{
+    PyConfig config;
+    PyConfig_InitPythonConfig(&config);
+    return start_from(&config, PyConfig_SetBytesString(&config, &config.program_name, program), program, message,
+                      size);
+}
+
+/* Append <home>/<folder> of every folder of the ':'-separated `search` to the module search path. */
+static PyStatus search_path(PyConfig *config, const char *home, const char *search)
+{
+    char path[8192];
+    PyStatus status = PyStatus_Ok();
+    for (const char *folder = search; *folder && !PyStatus_Exception(status);) {
+        size_t length = strcspn(folder, ":");
+        snprintf(path, sizeof path, "%s/%.*s", home, (int)length, folder);
+        wchar_t *wide = Py_DecodeLocale(path, NULL);
+        status = wide ? PyWideStringList_Append(&config->module_search_paths, wide) : PyStatus_NoMemory();
+        PyMem_RawFree(wide);
+        folder += length + (folder[length] == ':');
+    }
+    config->module_search_paths_set = 1;
+    return status;
+}
+
+static int start_isolated(const char *home, const char *search, char *message, size_t size)
+{
+    PyPreConfig preconfig;
+    PyPreConfig_InitIsolatedConfig(&preconfig);
+    preconfig.utf8_mode = 1;             /* the same encodings whatever the host's locale */
+    PyStatus status = Py_PreInitialize(&preconfig);
+    if (PyStatus_Exception(status)) {
+        snprintf(message, size, "starting the Python of %s failed: %s", home, status.err_msg ? status.err_msg : "");
+        return -1;
+    }
+    PyConfig config;
+    PyConfig_InitIsolatedConfig(&config); /* no user site, no PYTHON* variables, no current directory */
+    config.site_import = 0;               /* the search path is the runtime's, nothing to add */
+    config.write_bytecode = 0;            /* the FMU may be read-only: its modules are compiled already */
+    status = PyConfig_SetBytesString(&config, &config.home, home);
+    if (!PyStatus_Exception(status)) status = search_path(&config, home, search);
+    return start_from(&config, status, home, message, size);
 }
 
 /* ------------------------------------------------------------------ FMI API */
@@ -873,7 +916,7 @@ __attribute__((visibility("default"))) const ObsfmuBridge *obsfmu_bridge(void)
         get_real, get_integer, get_boolean, get_string, set_real, set_integer, set_boolean, set_string,
         get_fmu_state, machine_of, set_fmu_state, free_fmu_state, serialized_fmu_state_size, serialize_fmu_state,
         deserialize_fmu_state, set_real_input_derivatives, clear_input_derivatives, do_step, refused,
-        do_step_batched, get_real_output_derivatives, variable_count,
+        do_step_batched, get_real_output_derivatives, variable_count, start_isolated,
     };
     return &table;
 }

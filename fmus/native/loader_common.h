@@ -2,7 +2,8 @@
  * What the FMI 2.0 loader (loader.c) and the FMI 3.0 loader (loader_fmi3.c) share: everything that
  * does not depend on the FMI version (details: docs/portability.md, docs/fmi3.md).
  *
- *   - finding or starting Python and loading the BRIDGE, once per process (get_bridge);
+ *   - finding or starting Python and loading the BRIDGE, once per process (get_bridge); a standalone FMU
+ *     (obsfmu build --standalone) starts the runtime it carries, isolated (load_runtime);
  *   - the CORE of an instance: the bridge's component, the state machine's state and time, where
  *     messages go (an fmi2CallbackFunctions: the FMI 3 loader points it at a trampoline), and the
  *     rule that a FAILED call moves the instance to the version's failure state while a call the
@@ -261,6 +262,27 @@ static int python_from_override(const char *value, const char *record, char *pro
     return program[0] && library[0];
 }
 
+/* dlopen the libpython `library` (RTLD_GLOBAL: extension modules resolve their symbols there) if it is Python
+ * `version`; *must_start = 1 if it must be started.  NULL after a message ending in `hint`. */
+static void *open_python(const char *library, const char *version, int *must_start, const char *hint, char *message,
+                         size_t size)
+{
+    void *python = dlopen(library, RTLD_NOW | RTLD_GLOBAL);
+    if (python == NULL) {
+        snprintf(message, size, "cannot load %s: %s; %s", library, dlerror(), hint);
+        return NULL;
+    }
+    const char *(*get_version)(void) = (const char *(*)(void))dlsym(python, "Py_GetVersion");
+    int (*initialized)(void) = (int (*)(void))dlsym(python, "Py_IsInitialized");
+    if (get_version == NULL || initialized == NULL || !same_version(get_version(), version)) {
+        snprintf(message, size, "%s is not Python %s (it is %.20s); %s", library, version,
+                 get_version ? get_version() : "not a libpython", hint);
+        return NULL; /* never dlclose a libpython: it may have run already */
+    }
+    *must_start = !initialized();
+    return python;
+}
+
 /* Load libpython (RTLD_GLOBAL: extension modules resolve their symbols there); 1 if it must be started. */
 static void *load_python(const char *record, char *program, int *must_start, char *message, size_t size)
 {
@@ -291,20 +313,50 @@ static void *load_python(const char *record, char *program, int *must_start, cha
             return NULL;
         }
     }
-    void *python = dlopen(library, RTLD_NOW | RTLD_GLOBAL);
-    if (python == NULL) {
-        snprintf(message, size, "cannot load %s: %s; %s", library, dlerror(), hint);
-        return NULL;
+    return open_python(library, version, must_start, hint, message, size);
+}
+
+/* ------------------------------------------------------------------ a standalone FMU's own Python */
+
+/* A standalone FMU (obsfmu build --standalone, fmus/standalone.py) carries its Python in
+ * resources/<runtime>: the record's runtime* keys say where. */
+static int standalone(const char *record)
+{
+    char runtime[PATH_SIZE];
+    return obsfmu_record_value(record, "runtime", runtime, sizeof runtime)[0] != '\0';
+}
+
+/* The folder of a standalone FMU's runtime: <resources>/<runtime> (PATH_SIZE bytes). */
+static void runtime_home(const char *resources, const char *record, char *home)
+{
+    char relative[PATH_SIZE];
+    obsfmu_record_value(record, "runtime", relative, sizeof relative);
+    snprintf(home, PATH_SIZE, "%s/%s", resources, relative);
+}
+
+/* Load the runtime of a standalone FMU: the libraries it bundles (runtime_preload, dependencies first,
+ * RTLD_LOCAL: its extension modules find them by soname; one the process already has is kept), then its
+ * libpython (RTLD_GLOBAL).  `home` receives the runtime's folder. */
+static void *load_runtime(const char *resources, const char *record, char *home, int *must_start, char *message,
+                          size_t size)
+{
+    char version[32], relative[PATH_SIZE], preload[PATH_SIZE], path[2 * PATH_SIZE + 2], *next = NULL;
+    obsfmu_record_value(record, "python_version", version, sizeof version);
+    runtime_home(resources, record, home);
+    obsfmu_record_value(record, "runtime_preload", preload, sizeof preload);
+    for (char *name = strtok_r(preload, " ", &next); name; name = strtok_r(NULL, " ", &next)) {
+        const char *soname = strrchr(name, '/') ? strrchr(name, '/') + 1 : name;
+        if (dlopen(soname, RTLD_NOW | RTLD_NOLOAD) != NULL) continue;
+        snprintf(path, sizeof path, "%s/%s", home, name);
+        if (dlopen(path, RTLD_NOW | RTLD_LOCAL) == NULL) {
+            snprintf(message, size, "cannot load %s of this standalone FMU's Python: %s", path, dlerror());
+            return NULL;
+        }
     }
-    const char *(*get_version)(void) = (const char *(*)(void))dlsym(python, "Py_GetVersion");
-    int (*initialized)(void) = (int (*)(void))dlsym(python, "Py_IsInitialized");
-    if (get_version == NULL || initialized == NULL || !same_version(get_version(), version)) {
-        snprintf(message, size, "%s is not Python %s (it is %.20s); %s", library, version,
-                 get_version ? get_version() : "not a libpython", hint);
-        return NULL; /* never dlclose a libpython: it may have run already */
-    }
-    *must_start = !initialized();
-    return python;
+    obsfmu_record_value(record, "runtime_library", relative, sizeof relative);
+    snprintf(path, sizeof path, "%s/%s", home, relative);
+    return open_python(path, version, must_start, "the FMU's own Python is damaged: unzip the FMU again", message,
+                       size);
 }
 
 /* ------------------------------------------------------------------ one Python start per process */
@@ -371,23 +423,28 @@ static const ObsfmuBridge *get_bridge(const char *resources, const char *record,
     pthread_mutex_t *guard = process_guard();
     pthread_mutex_lock(guard);   /* held from "does Python run?" to "it runs" */
 
-    char version[32], program[PATH_SIZE] = "", name[PATH_SIZE], path[2 * PATH_SIZE];
+    char version[32], program[PATH_SIZE] = "", name[PATH_SIZE], path[2 * PATH_SIZE], search[PATH_SIZE];
     obsfmu_record_value(record, "python_version", version, sizeof version);
     obsfmu_record_value(record, "bridge", name, sizeof name);
-    int must_start = 0;
+    obsfmu_record_value(record, "runtime_path", search, sizeof search);
+    int must_start = 0, own = standalone(record);
     int (*initialized)(void) = (int (*)(void))dlsym(RTLD_DEFAULT, "Py_IsInitialized");
     if (initialized != NULL) { /* the process has Python: use it */
         const char *(*get_version)(void) = (const char *(*)(void))dlsym(RTLD_DEFAULT, "Py_GetVersion");
         const char *running = get_version ? get_version() : "";
         if (!same_version(running, version)) {
             snprintf(message, size, "this process runs Python %.20s, but this FMU's binary was built for Python %s: "
-                     "load it from a Python %s process, or rebuild it (obsfmu build) with the host's Python",
-                     running, version, version);
+                     "load it from a Python %s process, or rebuild it (obsfmu build) with the host's Python%s",
+                     running, version, version, own ? " (a standalone FMU runs its own Python only in a process "
+                     "that runs no Python)" : "");
             goto done;
         }
         must_start = !initialized();
         obsfmu_record_value(record, "python_executable", program, sizeof program);
-    } else if (load_python(record, program, &must_start, message, size) == NULL) {
+        if (!must_start) own = 0;        /* a process holds one interpreter: the host's */
+        else if (own) runtime_home(resources, record, program); /* a libpython not started yet: our runtime's */
+    } else if (own ? load_runtime(resources, record, program, &must_start, message, size) == NULL
+                   : load_python(record, program, &must_start, message, size) == NULL) {
         goto done;
     }
 
@@ -400,7 +457,8 @@ static const ObsfmuBridge *get_bridge(const char *resources, const char *record,
         if (library) dlclose(library);
         goto done;
     }
-    if (must_start && table()->start(program, message, size) != 0) {
+    if (must_start && (own ? table()->startIsolated(program, search, message, size)
+                           : table()->start(program, message, size)) != 0) {
         snprintf(start_failure, sizeof start_failure, "%s", message);
         goto done; /* the bridge stays loaded: the half-started interpreter may point into it */
     }

@@ -92,6 +92,10 @@ typedef struct {
     fmi2GetRealOutputDerivativesTYPE *getRealOutputDerivatives;
     /* the number of the slave's scalar variables (its value references 0 .. n-1) */
     size_t (*variableCount)(fmi2Component c);
+    /* start() for a standalone FMU: its own runtime in `home` (libpython loaded RTLD_GLOBAL from there),
+     * isolated (PYTHON* variables, user site ignored), the module search path the ':'-separated folders
+     * `search` relative to `home`; nothing is written there (it may be read-only). 0 on success. */
+    int (*startIsolated)(const char *home, const char *search, char *message, size_t size);
 } ObsfmuBridge;
 
 typedef const ObsfmuBridge *ObsfmuBridgeFunction(void);

@@ -137,16 +137,16 @@ def _damage(path: Path) -> str | None:
     return None
 
 
-def _ensure(items, build_dir: Path, force: bool, fmi_version: int) -> dict[str, Path]:
+def _ensure(items, build_dir: Path, force: bool, fmi_version: int, standalone: bool = False) -> dict[str, Path]:
     paths = {}
     folder = build_folder(build_dir, fmi_version)
     for definition, extra_modules in items:
         path = folder / f"{definition.model_name}.fmu"
-        if force or not is_current(path, definition, extra_modules, fmi_version):
-            build_fmu(definition, folder, extra_modules, fmi_version)
+        if force or not is_current(path, definition, extra_modules, fmi_version, standalone=standalone):
+            build_fmu(definition, folder, extra_modules, fmi_version, standalone=standalone)
         elif (problem := _damage(path)) is not None:
             print(f"obsfmu: note: {path}: {problem}; rebuilding it", file=sys.stderr)
-            build_fmu(definition, folder, extra_modules, fmi_version)
+            build_fmu(definition, folder, extra_modules, fmi_version, standalone=standalone)
         problem = _damage(path)
         if problem is not None:
             raise SimulationError(f"{path}: {problem} even after rebuilding it")
@@ -154,17 +154,20 @@ def _ensure(items, build_dir: Path, force: bool, fmi_version: int) -> dict[str, 
     return paths
 
 
-def ensure_fmus(scenario: Scenario, build_dir: Path, force: bool = False, fmi_version: int = 2) -> dict[str, Path]:
+def ensure_fmus(scenario: Scenario, build_dir: Path, force: bool = False, fmi_version: int = 2,
+                standalone: bool = False) -> dict[str, Path]:
     """Build the scenario's FMUs into ``build_dir`` unless current, intact ones are there.
 
     A cached FMU built from the same sources but damaged since (unreadable modelDescription,
     missing binary) is rebuilt with a note on stderr.  FMI 3.0 FMUs (``fmi_version=3``) go to
-    ``build_dir/fmi3`` (:func:`fmus.fmi3.build_folder`).
+    ``build_dir/fmi3`` (:func:`fmus.fmi3.build_folder`).  ``standalone``: FMUs that carry their Python
+    (:mod:`fmus.standalone`); an FMU of the other build is rebuilt.
     """
-    return _ensure(_items(scenario), build_dir, force, fmi_version)
+    return _ensure(_items(scenario), build_dir, force, fmi_version, standalone)
 
 
-def ensure_all(scenarios, build_dir: Path, force: bool = False, fmi_version: int = 2) -> dict[str, Path]:
+def ensure_all(scenarios, build_dir: Path, force: bool = False, fmi_version: int = 2,
+               standalone: bool = False) -> dict[str, Path]:
     """Every distinct FMU of ``scenarios``, each built once (``ltv-ls`` and ``ltv-ls-bounded`` share theirs).
 
     Two scenarios naming the same model must define it identically (else :class:`SimulationError`).
@@ -176,7 +179,7 @@ def ensure_all(scenarios, build_dir: Path, force: bool = False, fmi_version: int
             if (known[0].to_json(), known[1]) != (definition.to_json(), extra_modules):
                 raise SimulationError(f"{definition.model_name}: scenarios {known[2]!r} and {scenario.name!r} "
                                       f"define this FMU differently")
-    return _ensure(((d, extra) for d, extra, _ in distinct.values()), build_dir, force, fmi_version)
+    return _ensure(((d, extra) for d, extra, _ in distinct.values()), build_dir, force, fmi_version, standalone)
 
 
 _OVERRIDE = re.compile(r"^(?P<instance>[A-Za-z_]\w*)\.(?P<variable>[^=]+)=(?P<value>.+)$")

@@ -15,7 +15,8 @@ from pathlib import Path
 
 from observers.checks import ParameterError
 
-__all__ = ["scenario_key", "definitions_of", "build_definitions", "show", "is_design_file", "holds_components", "configure_show"]
+__all__ = ["scenario_key", "definitions_of", "build_definitions", "show", "is_design_file", "holds_components",
+           "configure_show"]
 
 
 def scenario_key(args) -> str:
@@ -79,7 +80,7 @@ def definitions_of(path: Path | str) -> list:
     return definitions
 
 
-def build_definitions(definitions: list, out: Path, fmi_version: int = 2) -> list[Path]:
+def build_definitions(definitions: list, out: Path, fmi_version: int = 2, standalone: bool = False) -> list[Path]:
     """Build ``definitions`` into ``out`` (its FMI 3.0 folder for version 3).
 
     The FMUs are built into a temporary folder beside their place and moved there only once all are
@@ -91,7 +92,8 @@ def build_definitions(definitions: list, out: Path, fmi_version: int = 2) -> lis
     folder.mkdir(parents=True, exist_ok=True)
     temporary = Path(tempfile.mkdtemp(prefix=".obsfmu_build_", dir=folder))
     try:
-        built = [build_fmu(definition, temporary, fmi_version=fmi_version) for definition in definitions]
+        built = [build_fmu(definition, temporary, fmi_version=fmi_version, standalone=standalone)
+                 for definition in definitions]
         paths = []
         for fmu in built:
             target = folder / fmu.name

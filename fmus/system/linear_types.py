@@ -14,7 +14,7 @@ from observers.lti_model import StateSpace
 from observers.modal import is_controllable, is_observable, observer_gain, place
 from observers.standard_forms import FORMS
 
-from ..config import _gain, _require_bounded_transient
+from ..config import design_gain, require_bounded_transient
 from ..runtime.kinds.expression import expression_plant_definition
 from ..runtime.kinds.linear import feedback_definition, observer_definition, plant_definition
 from .schema import Context, Field, register
@@ -101,7 +101,7 @@ def _design_fields(gain: str, shape: str, doc: str) -> tuple[Field, ...]:
 
 
 def _table(values: dict, keys) -> dict:
-    """The design request as :func:`fmus.config._gain` reads it (only the fields the file gave)."""
+    """The design request as :func:`fmus.config.design_gain` reads it (only the fields the file gave)."""
     return {key: values[key] for key in keys if key in values["given"]}
 
 
@@ -122,11 +122,11 @@ def _define_observer(model_name: str, values: dict, context: Context) -> list:
         raise ParameterError(f"{context.prefix}plant: the pair (A, C) of {values['plant']!r} is not observable; "
                              "no observer can reconstruct the state")
     table = _table(values, ("poles", "t_settle", "shift", "form", "N"))
-    N, poles = _gain(section, table, model, "N", (model.n, model.p),
+    N, poles = design_gain(section, table, model, "N", (model.n, model.p),
                      lambda p, name: observer_gain(model.A, model.C, p, name))
     require_hurwitz(f"{section}.N (A - N C)", model.A - N @ model.C)
     if poles is not None:
-        _require_bounded_transient(f"{section}.poles", model.A - N @ model.C)
+        require_bounded_transient(f"{section}.poles", model.A - N @ model.C)
     poles = np.linalg.eigvals(model.A - N @ model.C) if poles is None else poles
     x_hat0 = np.zeros(model.n) if values["x_hat0"] is None else values["x_hat0"]
     if np.size(x_hat0) != model.n:
@@ -151,10 +151,11 @@ def _define_feedback(model_name: str, values: dict, context: Context) -> list:
         raise ParameterError(f"{context.prefix}plant: the pair (A, B) of {values['plant']!r} is not controllable; "
                              "state feedback cannot place the poles")
     table = _table(values, ("poles", "t_settle", "shift", "form", "K"))
-    K, poles = _gain(section, table, model, "K", (model.m, model.n), lambda p, name: place(model.A, model.B, p, name))
+    K, poles = design_gain(section, table, model, "K", (model.m, model.n),
+                           lambda p, name: place(model.A, model.B, p, name))
     require_hurwitz(f"{section}.K (A - B K)", model.A - model.B @ K)
     if poles is not None:
-        _require_bounded_transient(f"{section}.poles", model.A - model.B @ K)
+        require_bounded_transient(f"{section}.poles", model.A - model.B @ K)
     poles = np.linalg.eigvals(model.A - model.B @ K) if poles is None else poles
     context.notes.append(f"{section}: K = {matrix_text(K)}; eig(A - B K) = [{poles_text(poles)}]")
     return [feedback_definition(model_name, K, units, values["description"])]

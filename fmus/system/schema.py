@@ -72,8 +72,9 @@ class Context:
     """What a ``define`` function may know beyond its own fields.
 
     ``prefix`` names the component in messages (``components.plant.``); ``name`` is the system's;
-    ``others`` maps every component defined before this one to its ``(kind, values)``; ``folder`` is the system file's folder (relative
-    paths are read from there); ``notes`` collects what the build prints (designed gains and poles).
+    ``others`` maps every component defined before this one to its ``(kind, values)``; ``folder`` is the
+    system file's folder (relative paths are read from there); ``notes`` collects what the build prints
+    (designed gains and poles).
     """
 
     prefix: str

@@ -1,0 +1,68 @@
+"""``obsfmu``: the parser of every subcommand and the entry point (one line and exit code 2 for any
+user mistake: :class:`ParameterError`, :class:`SimulationError`, :class:`OutputError`, a refusal of the
+file system; 128 + the signal when interrupted)."""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+from collections.abc import Callable
+
+from observers.checks import ParameterError
+
+from ..campaign.cli import SUBCOMMAND as SWEEP
+from ..master import SimulationError
+from ..output import OutputError
+from .args import EXIT_USAGE, Parser
+from .commands import SUBCOMMANDS as COMMANDS
+from .stopping import STOP_SIGNALS, install_handlers, interrupted_status, raise_terminated, restore_handlers
+from .subcommand import Subcommand
+
+__all__ = ["main", "parser", "register", "SUBCOMMANDS"]
+
+#: every subcommand by name: the project's, then any added with :func:`register`
+SUBCOMMANDS: dict[str, Subcommand] = {command.name: command for command in [*COMMANDS, SWEEP]}
+
+
+def register(name: str, help: str, configure: Callable[[argparse.ArgumentParser], None],
+             handler: Callable[[argparse.Namespace], int], epilog: str | Callable[[], str] | None = None) -> None:
+    """Add ``obsfmu NAME`` (an extension's subcommand); ``epilog`` (text after the options in ``--help``)
+    may be a function, called when the parser is built."""
+    if name in SUBCOMMANDS:
+        raise ValueError(f"subcommand {name!r} registered twice")
+    SUBCOMMANDS[name] = Subcommand(name, help, configure, handler, epilog)
+
+
+def parser() -> argparse.ArgumentParser:
+    main_parser = Parser(prog="obsfmu", description="Adaptive state observers as FMI 2.0 and 3.0 co-simulation FMUs")
+    commands = main_parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for command in SUBCOMMANDS.values():
+        epilog = command.epilog() if callable(command.epilog) else command.epilog
+        sub = commands.add_parser(command.name, help=command.help, description=command.help, epilog=epilog,
+                                  formatter_class=argparse.RawDescriptionHelpFormatter)
+        command.configure(sub)
+        sub.set_defaults(func=command.handler)
+    return main_parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``obsfmu ...``; returns the exit code (2: a user mistake, 128 + the signal: interrupted)."""
+    previous = install_handlers(raise_terminated, tuple(s for s in STOP_SIGNALS if s != signal.SIGINT))
+    try:
+        args = parser().parse_args(argv)
+        return args.func(args)
+    except SystemExit as exc:  # argparse: --help (0) or a bad argument (2, message already printed)
+        return exc.code if isinstance(exc.code, int) else EXIT_USAGE
+    except (ParameterError, SimulationError, OutputError) as exc:
+        print(f"obsfmu: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt as exc:  # Ctrl-C, or a Terminated
+        print(f"\nobsfmu: interrupted ({exc or 'SIGINT'})", file=sys.stderr)
+        return interrupted_status(exc)
+    except OSError as exc:  # a refusal of the file system not checked beforehand: still one line
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"obsfmu: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        return EXIT_USAGE
+    finally:
+        restore_handlers(previous)
