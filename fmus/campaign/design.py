@@ -23,6 +23,7 @@ from pathlib import Path
 
 
 from .. import scenarios
+from ..system import resolve
 from ..master import COUPLINGS, ORDERS
 from .errors import CampaignError
 from .measures import Measure, measure_for
@@ -187,7 +188,7 @@ class Campaign:
     # -- resolution against the scenario and its FMUs
     def plan(self) -> Plan:
         """Build/check the FMUs, check every name and value, and list the samples."""
-        scenario = scenarios.get(self.scenario)
+        scenario = resolve(self.scenario)
         fmus = scenarios.ensure_fmus(scenario, Path(self.build_dir))
         descriptions = _model_variables(scenario, fmus)
         for name in list(self.specs) + list(self.fixed):

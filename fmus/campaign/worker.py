@@ -31,6 +31,7 @@ from pathlib import Path
 from distributed import WorkerPlugin
 
 from .. import scenarios
+from ..system import resolve
 from ..master import Session, SimulationError
 
 __all__ = ["Task", "FmuPlugin", "run_sample", "install_fmus", "STATUSES"]
@@ -126,7 +127,7 @@ def _session(task: Task) -> tuple[Session, int, float]:
         raise SimulationError(f"FMU set {task.fmu_set} is not installed on this worker (the campaign registers "
                               f"it as the worker plugin {plugin_name(task.fmu_set)!r})")
     started = wallclock.perf_counter()
-    scenario = scenarios.get(task.scenario)
+    scenario = resolve(task.scenario)          # a name, or a system file read in this worker
     fmus = {model: directory / f"{model}.fmu" for _, model, _ in scenario.components}
     session = Session(scenarios.system(scenario, fmus), echo_log=False)
     setup = wallclock.perf_counter() - started
@@ -179,7 +180,7 @@ def run_sample(task: Task) -> dict:
 
 def _metrics(task: Task, result, row: dict) -> dict:
     """The scenario's summary metrics of a finished run (a metric named like a row column gets ``metric_``)."""
-    summarize = scenarios.get(task.scenario).summarize
+    summarize = resolve(task.scenario).summarize
     if summarize is None:
         return {}
     try:

@@ -33,7 +33,7 @@ from ..result import Result, RunInfo
 if TYPE_CHECKING:
     from ..campaign.measures import Measure
 
-__all__ = ["Scenario", "Summary", "SCENARIOS", "get", "ensure_fmus", "ensure_all", "run", "run_info", "parse_overrides",
+__all__ = ["Scenario", "Summary", "SCENARIOS", "get", "add", "ensure_fmus", "ensure_all", "run", "run_info", "parse_overrides",
            "system", "changed_parameters"]
 
 
@@ -104,14 +104,20 @@ def _registry() -> dict[str, Scenario]:
 
 
 def get(name: str) -> Scenario:
-    """The scenario ``name``, or the scenario of the system file ``name`` (a path ending in .toml)."""
+    """The scenario ``name``, or one :func:`add` ed under ``name`` in this process (a system file's)."""
     try:
-        return SCENARIOS[name]
+        return SCENARIOS[name] if name in SCENARIOS else _ADDED[name]
     except KeyError:
-        from ..system import is_system_file, scenario_from_file
-        if is_system_file(name):
-            return scenario_from_file(name)
         raise SimulationError(f"unknown scenario {name!r}; available: {', '.join(SCENARIOS)}") from None
+
+
+_ADDED: dict[str, Scenario] = {}
+
+
+def add(key: str, scenario: Scenario) -> None:
+    """Make :func:`get` (and so :func:`run`, the exports and the campaign) find ``scenario`` under ``key`` in
+    this process: :func:`fmus.system.scenario_from_file` adds a system file's under its resolved path."""
+    _ADDED[key] = scenario
 
 
 def _items(scenario: Scenario):

@@ -13,25 +13,31 @@ from pathlib import Path
 from .load import load_system
 from .model import SystemSpec
 
-__all__ = ["load_system", "scenario_from_file", "field_reference", "SystemSpec", "is_system_file"]
+__all__ = ["load_system", "scenario_from_file", "resolve", "field_reference", "SystemSpec", "is_system_file"]
 
 _CACHE: dict[tuple, object] = {}
 
 
 def scenario_from_file(path: Path | str):
-    """The scenario of the system file ``path`` (read once per content: cached by path and modification)."""
+    """The scenario of the system file ``path`` (read once per content: cached by path and modification),
+    added to :mod:`fmus.scenarios` under the file's resolved path (:func:`fmus.scenarios.get` finds it)."""
+    from .. import scenarios
     path = Path(path)
     try:
         stat = path.stat()
         key = (str(path.resolve()), stat.st_mtime_ns, stat.st_size)
     except OSError:
-        key = None
-    if key is None or key not in _CACHE:
-        scenario = load_system(path).scenario()
-        if key is None:
-            return scenario
-        _CACHE[key] = scenario
+        return load_system(path).scenario()          # it says why the file cannot be read
+    if key not in _CACHE:
+        _CACHE[key] = load_system(path).scenario()
+    scenarios.add(key[0], _CACHE[key])
     return _CACHE[key]
+
+
+def resolve(name: str):
+    """The scenario ``name``: a paper scenario's name, or a system file's path (read and added if needed)."""
+    from .. import scenarios
+    return scenario_from_file(name) if is_system_file(name) else scenarios.get(name)
 
 
 def is_system_file(name: str) -> bool:
@@ -45,7 +51,7 @@ def field_reference() -> str:
 
     from .connect import MAX_CONNECTIONS
     from .load import COMPARE_FIELDS, EXPERIMENT_FIELDS, MAX_COMPONENTS, MAX_FILE_BYTES, TOP_FIELDS
-    from .schema import reference
+    from .kinds import reference
     from .values import MAX_DIMENSION, MAX_ENTRIES, MAX_TEXT
     limits = (f"A file of at most {MAX_FILE_BYTES // 2 ** 20} MiB, plain UTF-8 text without control characters; "
               f"at most {MAX_COMPONENTS} components and {MAX_CONNECTIONS} connections; matrices of at most "

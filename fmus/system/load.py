@@ -22,7 +22,8 @@ from ..master import COUPLINGS, ORDERS
 from .connect import check_compares, check_connections, check_values, require_connected
 from .locate import Locator
 from .model import ComponentSpec, SystemSpec
-from .schema import Context, Field, component_type
+from .kinds import component_type
+from .schema import TYPES, Context, Field
 from .values import check_text, check_value
 
 if sys.version_info >= (3, 11):
@@ -128,7 +129,6 @@ def _component(instance: str, table, others: dict, context: Context, locator: Lo
                              "write connections = [...] before the first [table] of the file")
     entry = component_type(kind)
     if entry is None:
-        from .schema import TYPES
         raise ParameterError(f"{prefix}kind: unknown component type {kind!r}{_did_you_mean(kind, TYPES)}")
     values, given = _fields(prefix, table, entry.fields)
     for name in entry.depends:

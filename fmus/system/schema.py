@@ -5,8 +5,8 @@ doc, example) and a ``define`` function that turns the checked field values of o
 FMU definitions (:class:`~fmus.runtime.definition.FmuDefinition`) through the definition functions of
 :mod:`fmus.runtime.kinds`.  The definitions carry the component's ports, so connections are checked
 against them before anything is built.  The types themselves are registered by
-:mod:`fmus.system.linear_types` and :mod:`fmus.system.signal_types`; the field reference of the
-docs (``docs/system-file-reference.md``) is generated from this registry by :func:`reference`.
+:mod:`fmus.system.linear_types` and :mod:`fmus.system.signal_types` (both imported by
+:mod:`fmus.system.kinds`, which also generates the field reference of ``docs/system-file-reference.md``).
 """
 
 from __future__ import annotations
@@ -16,8 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-__all__ = ["Field", "ComponentType", "Context", "REQUIRED", "TYPES", "register", "component_type", "reference",
-           "FIELD_TYPES", "COMMON_FIELDS"]
+__all__ = ["Field", "ComponentType", "Context", "REQUIRED", "TYPES", "register", "FIELD_TYPES", "COMMON_FIELDS"]
 
 
 class _Required:
@@ -118,50 +117,3 @@ def register(kind: str, doc: str, fields, define, depends=()) -> ComponentType:
         raise RuntimeError(f"component type {kind!r} registered twice")
     TYPES[kind] = ComponentType(kind, doc, COMMON_FIELDS + tuple(fields), define, tuple(depends))
     return TYPES[kind]
-
-
-def component_type(kind: str) -> ComponentType | None:
-    """The registered type ``kind`` (None if unknown); importing the type modules on first use."""
-    from . import linear_types, signal_types  # noqa: F401  (register on import)
-    return TYPES.get(kind)
-
-
-def _cell(text: str) -> str:
-    return str(text).replace("|", "\\|")
-
-
-def _default(f: Field) -> str:
-    if f.required:
-        return "**required**"
-    if f.default is None or f.default == "":
-        return "optional"
-    return f"`{str(f.default).lower() if isinstance(f.default, bool) else f.default}`"
-
-
-def _table(fields) -> list[str]:
-    lines = ["| field | type | default | unit | meaning | example |", "|---|---|---|---|---|---|"]
-    for f in fields:
-        kind = f.type if not f.choices else "choice: " + ", ".join(f"`{c}`" for c in f.choices)
-        example = f"`{f.example}`" if f.example else ""
-        lines.append(f"| `{f.name}` | {_cell(kind)} | {_default(f)} | {_cell(f.unit)} | {_cell(f.doc)} | "
-                     f"{_cell(example)} |")
-    return lines
-
-
-def reference(sections: dict[str, tuple[str, tuple[Field, ...]]]) -> str:
-    """The field reference (markdown): the file's ``sections`` (title -> (doc, fields)), then every type."""
-    component_type("lti")
-    lines = ["# System file: field reference", "",
-             "Generated from the registry of `fmus/system/schema.py` by `obsfmu show --fields`; do not edit "
-             "by hand (`tests/test_system_file.py` checks that this file is the generated one).", "",
-             "## Value types", ""]
-    lines += [f"- **{name}**: {text}" for name, text in FIELD_TYPES.items()]
-    for title, (doc, fields) in sections.items():
-        lines += ["", f"## {title}", "", doc] + (["", *_table(fields)] if fields else [])
-    lines += ["", "## Component types", "",
-              "Every component is a table `[components.NAME]` with a `kind`; NAME is an identifier and "
-              "its FMU is called `<name>_<NAME>`. Components step in the order of the file (Gauss-Seidel)."]
-    for kind in sorted(TYPES):
-        entry = TYPES[kind]
-        lines += ["", f"### `{kind}`", "", entry.doc, ""] + _table(entry.fields)
-    return "\n".join(lines) + "\n"
