@@ -301,3 +301,18 @@ def test_show_prints_the_reference_and_a_checked_file(tmp_path):
     assert done.returncode == 0, done.stderr
     assert "observer (luenberger, FMU dcmotor_observer): inputs u[1], y[1]; outputs x_hat[3], y_hat[1]" in done.stdout
     assert "observer.x_hat[3] -> controller.x_hat[3]" in done.stdout
+
+
+def test_the_output_interval_and_a_reference_csv_named_by_the_file(tmp_path):
+    text = motor_file().replace("step = 1e-4\n", "step = 1e-4\noutput_interval = 0.01\n")
+    (tmp_path / "dcmotor.toml").write_text(text)
+    done = obsfmu("run", "--config", "dcmotor.toml", "--csv", "ref.csv", "--build-dir", "build", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    time, _ = read_csv(tmp_path / "ref.csv")
+    assert len(time) == 201 and np.allclose(np.diff(time), 0.01)
+    (tmp_path / "dcmotor.toml").write_text(text.replace("[[report.compare]]", '[report]\nreference = "ref.csv"\n\n'
+                                                                               "[[report.compare]]"))
+    done = obsfmu("run", "--config", "dcmotor.toml", "--build-dir", "build", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    line = next(line for line in done.stdout.splitlines() if line.startswith("reference: "))
+    assert line.startswith("reference: ref.csv, max |run - reference| 0 over ") and "at its 201 times" in line, line

@@ -60,7 +60,8 @@ def cmd_run(args) -> int:
     figures = figure_paths("--plot", args.plot) if args.plot else []
     build_dir = check_directory("--build-dir", args.build_dir, writable=False)
     with StopRequest() as stop:
-        outcome = run_scenario(key, build_dir, stop, csv, times["output_interval"],
+        interval = times["output_interval"] or (scenario.output_interval if args.config else None)  # a file's own
+        outcome = run_scenario(key, build_dir, stop, csv, interval,
                                stop_time=times["stop_time"], step=times["step"], order=args.master,
                                coupling=args.coupling, overrides=overrides, tolerance=args.tol,
                                fmi_version=args.fmi_version)

@@ -38,9 +38,11 @@ def _table(fields) -> list[str]:
 def reference(sections: dict[str, tuple[str, tuple[Field, ...]]]) -> str:
     """The field reference (markdown): the file's ``sections`` (title -> (doc, fields)), then every type."""
     lines = ["# System file: field reference", "",
-             "Generated from the registry of `fmus/system/schema.py` by `obsfmu show --fields`; do not edit "
+             "Generated from the registry of component types (`fmus/system/schema.py`, `linear_types.py`, "
+             "`signal_types.py`) by `obsfmu show --fields`; do not edit "
              "by hand (`tests/test_system_file.py` checks that this file is the generated one).", "",
-             "## Value types", ""]
+             "Units: *(signal)* is the unit the component's `unit` field gives, *(time unit)* the file's "
+             "`time_unit`.", "", "## Value types", ""]
     lines += [f"- **{name}**: {text}" for name, text in FIELD_TYPES.items()]
     for title, (doc, fields) in sections.items():
         lines += ["", f"## {title}", "", doc] + (["", *_table(fields)] if fields else [])

@@ -51,7 +51,8 @@ EXPERIMENT_FIELDS = (
     Field("master", "choice", "stepping order", "gauss-seidel", choices=ORDERS),
     Field("coupling", "choice", "inputs inside a step: interpolated/extrapolated, or held", "linear",
           choices=COUPLINGS),
-    Field("output_interval", "number", "spacing of the CSV rows (absent: every communication point)", None,
+    Field("output_interval", "number", "spacing of the CSV rows (absent: every communication point; "
+          "--output-interval overrides it)", None,
           "(time unit)", "0.01"),
     Field("tolerance", "number", "adaptive master: error per unit step on every output", 1e-6, "", "1e-6"),
 )
