@@ -13,7 +13,9 @@ from pathlib import Path
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from fmus.system.kinds import component_type
 from fmus.system.load import parse_system
+from fmus.system.schema import TYPES
 from observers.checks import ParameterError
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -96,7 +98,8 @@ FIELDS = sorted({(instance, key) for instance, table in GOOD["components"].items
                 | {("experiment", key) for key in GOOD["experiment"]}
                 | {("", key) for key in ("name", "description", "connections")}
                 | {("plant", "sample_time"), ("observer", "x_hat0"), ("reference", "sweep"), ("sensor", "cutoff_hz"),
-                   ("plant", "typo"), ("new", "kind")})
+                   ("sensor", "size"), ("sensor", "distribution"), ("reference", "t0"), ("plant", "typo"),
+                   ("new", "kind")})
 
 
 def mutated(field: tuple[str, str], value) -> dict:
@@ -143,3 +146,27 @@ def test_huge_and_deep_expressions_are_refused_at_once():
             assert "limit" in str(exc) and "pendulum.f[1]" in str(exc)
         else:
             raise AssertionError("accepted")
+
+
+component_type("lti")
+KINDS = sorted(TYPES)
+FIELD_NAMES = sorted({f.name for kind in KINDS for f in TYPES[kind].fields} - {"kind"})
+
+
+@FUZZ
+@given(st.sampled_from(KINDS), st.dictionaries(st.sampled_from(FIELD_NAMES), VALUES, max_size=6))
+def test_random_components_of_every_type(kind, fields):
+    data = json.loads(json.dumps(GOOD))
+    data["components"]["extra"] = {"kind": kind, **fields}
+    check(dump(data))
+
+
+@FUZZ
+@given(st.data())
+def test_random_values_in_the_fields_of_one_type(data):
+    kind = data.draw(st.sampled_from(KINDS))
+    names = sorted(f.name for f in TYPES[kind].fields if f.name != "kind")
+    fields = data.draw(st.dictionaries(st.sampled_from(names), VALUES, max_size=len(names)))
+    document = json.loads(json.dumps(GOOD))
+    document["components"]["extra"] = {"kind": kind, **fields}
+    check(dump(document))

@@ -18,6 +18,7 @@ from ..config import design_gain, require_bounded_transient
 from ..runtime.kinds.expression import expression_plant_definition
 from ..runtime.kinds.linear import feedback_definition, observer_definition, plant_definition
 from .schema import Context, Field, register
+from .values import MAX_DIMENSION
 
 __all__ = ["model_of", "matrix_text", "poles_text"]
 
@@ -47,6 +48,8 @@ def _expanded_units(values: dict, model: StateSpace) -> dict:
 def model_of(values: dict, prefix: str) -> StateSpace:
     """The checked state-space model of an ``lti`` component."""
     dt = values["sample_time"]
+    if dt is not None and dt <= 0:
+        raise ParameterError(f"{prefix}sample_time: must be > 0 (absent: a continuous plant), got {dt:g}")
     return StateSpace.checked(values["A"], values["B"], values["C"], values["D"], prefix=prefix,
                               dt=0.0 if dt is None else dt)
 
@@ -182,8 +185,8 @@ register("expression", "Plant of expressions: `dx/dt = f(t, x, u, p)`, `y = h(t,
          "`x[k+1] = f`). `x`, `u`, `p` are indexed from 1; named parameters are FMU parameters too. Ports: input `u` "
          "(if inputs > 0), outputs `y` and `x`.", (
              Field("states", "integer", "number of states (absent: the number of f's expressions)", None,
-                   example="2"),
-             Field("inputs", "integer", "size of the input u", 0, example="1"),
+                   example="2", maximum=MAX_DIMENSION),
+             Field("inputs", "integer", "size of the input u", 0, example="1", maximum=MAX_DIMENSION),
              Field("parameters", "table", "named parameters of the expressions (FMU parameters)", None,
                    example="{ g = 9.81, l = 0.5 }"),
              Field("parameter_units", "unit-table", "their units", None, example='{ g = "m/s2" }'),

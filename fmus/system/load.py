@@ -73,6 +73,9 @@ def _did_you_mean(name: str, known) -> str:
 def _unknown(where: str, table: dict, fields) -> None:
     known = [f if isinstance(f, str) else f.name for f in fields]
     for key in table:
+        if key == "connections" and where:
+            raise ParameterError(f"{where}connections: in TOML a key after a [table] header belongs to that table; "
+                                 "write connections = [...] before the first [table] of the file")
         if key not in known:
             check_text(f"{where}{key}", key)
             raise ParameterError(f"{where}{key}: unknown field{_did_you_mean(key, known)}")
@@ -125,9 +128,6 @@ def _component(instance: str, table, others: dict, context: Context, locator: Lo
     if "kind" not in table:
         raise ParameterError(f"{prefix}kind: missing; the type of the component (see 'obsfmu show --fields')")
     kind = check_text(prefix + "kind", table["kind"])
-    if "connections" in table:
-        raise ParameterError(f"{prefix}connections: in TOML a key after a [table] header belongs to that table; "
-                             "write connections = [...] before the first [table] of the file")
     entry = component_type(kind)
     if entry is None:
         raise ParameterError(f"{prefix}kind: unknown component type {kind!r}{_did_you_mean(kind, TYPES)}")
@@ -140,7 +140,11 @@ def _component(instance: str, table, others: dict, context: Context, locator: Lo
         _expressions_located(values, prefix, locator, path)
     context.prefix = prefix
     context.others = {name: (spec.kind, spec.values) for name, spec in others.items()}
-    definitions = entry.define(f"{context.name}_{instance}", {**values, "given": given}, context)
+    try:
+        definitions = entry.define(f"{context.name}_{instance}", {**values, "given": given}, context)
+    except ParameterError as exc:       # the kinds name their own arguments: the component's prefix added
+        message = str(exc)
+        raise ParameterError(message if message.startswith(("components.", path)) else prefix + message) from None
     return ComponentSpec(instance, kind, values, given, definitions)
 
 

@@ -56,6 +56,7 @@ class Field:
     unit: str = ""
     example: str = ""
     choices: tuple[str, ...] = ()
+    maximum: int | None = None      #: the largest value an integer field takes (a size: the design limit)
 
     def __post_init__(self):
         if self.type not in FIELD_TYPES:

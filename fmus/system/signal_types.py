@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from ..runtime.kinds import noise, sources
 from .schema import Context, Field, register
+from .values import MAX_DIMENSION
 
 __all__: list[str] = []
 
@@ -82,7 +83,8 @@ for _family, (_doc, _) in _SOURCES.items():
              _source_define(_family))
 
 _NOISE = (
-    Field("size", "integer", "number of streams (entries of y, and of u for added-noise)", 1, example="3"),
+    Field("size", "integer", "number of streams (entries of y, and of u for added-noise)", 1, example="3",
+          maximum=MAX_DIMENSION),
     Field("std", "number", "standard deviation of the white samples", 1.0, "(signal)", "1e-3"),
     Field("sample_interval", "number", "one sample per interval, held", 1e-3, "s", "1e-3"),
     Field("seed", "integer", "seed (>= 0): same seed, same noise, whatever the step", 0, example="7"),

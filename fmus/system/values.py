@@ -164,4 +164,7 @@ def check_value(field: Field, where: str, value):
     """``value`` checked against ``field`` (type, shape, limits); numbers as floats, arrays as numpy arrays."""
     if field.type == "choice":
         return _choice(where, value, field.choices)
-    return _CHECKS[field.type](where, value)
+    checked = _CHECKS[field.type](where, value)
+    if field.maximum is not None and checked > field.maximum:
+        raise ParameterError(f"{where}: {checked} is more than the limit of {field.maximum}")
+    return checked
