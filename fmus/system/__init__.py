@@ -19,8 +19,24 @@ _CACHE: dict[tuple, object] = {}
 
 
 def scenario_from_file(path: Path | str):
-    """The scenario of the system file ``path`` (read once per content: cached by path and modification),
-    added to :mod:`fmus.scenarios` under the file's resolved path (:func:`fmus.scenarios.get` finds it)."""
+    """The scenario of the system file ``path``.
+
+    Parameters
+    ----------
+    path : Path or str
+        The system file; read once per content (cached by path, modification time and size).
+
+    Returns
+    -------
+    fmus.scenarios.Scenario
+        Added to :mod:`fmus.scenarios` under the file's resolved path, so that :func:`fmus.scenarios.get`
+        (and with it run, export and the campaign) finds it in this process.
+
+    Raises
+    ------
+    ParameterError
+        Any mistake of the file (:func:`fmus.system.load.parse_system`).
+    """
     from .. import scenarios
     path = Path(path)
     try:
@@ -35,7 +51,17 @@ def scenario_from_file(path: Path | str):
 
 
 def resolve(name: str):
-    """The scenario ``name``: a paper scenario's name, or a system file's path (read and added if needed)."""
+    """The scenario ``name``: a paper scenario's name, or a system file's path (read and added if needed).
+
+    Parameters
+    ----------
+    name : str
+        ``"ship"``, or ``"/home/me/dcmotor.toml"`` (what a sweep's tasks carry to their workers).
+
+    Returns
+    -------
+    fmus.scenarios.Scenario
+    """
     from .. import scenarios
     return scenario_from_file(name) if is_system_file(name) else scenarios.get(name)
 

@@ -81,10 +81,22 @@ def definitions_of(path: Path | str) -> list:
 
 
 def build_definitions(definitions: list, out: Path, fmi_version: int = 2, standalone: bool = False) -> list[Path]:
-    """Build ``definitions`` into ``out`` (its FMI 3.0 folder for version 3).
+    """Build ``definitions`` into ``out``; an error leaves nothing half-written.
 
-    The FMUs are built into a temporary folder beside their place and moved there only once all are
-    built, so an error leaves nothing half-written.
+    Parameters
+    ----------
+    definitions : list of FmuDefinition
+        From :func:`definitions_of`.
+    out : Path
+        The build folder (``out/fmi3`` for FMI 3.0).
+    fmi_version : {2, 3}
+    standalone : bool
+        FMUs that carry their Python runtime (:func:`fmus.builder.build_fmu`).
+
+    Returns
+    -------
+    list of Path
+        The FMUs, built into a temporary folder beside their place and moved there once all are built.
     """
     from ..builder import build_fmu
     from ..fmi3 import build_folder

@@ -56,7 +56,26 @@ def elements(where: str, components: dict, instance: str, port: str, index: str 
 
 
 def check_connections(items, components: dict) -> list[Connection]:
-    """The connections (one per element pair), checked: ports exist, sizes agree, no input twice."""
+    """The file's ``connections`` checked against the components' ports.
+
+    Parameters
+    ----------
+    items : list of str
+        ``"a.y -> b.u"``, ``"a.y[2] -> b.u[1]"``.
+    components : dict
+        Instance name -> :class:`~fmus.system.model.ComponentSpec`.
+
+    Returns
+    -------
+    list of fmus.master.Connection
+        One per connection of whole ports, one per element otherwise.
+
+    Raises
+    ------
+    ParameterError
+        ``connections[i]``: unknown component or port (did-you-mean), index out of range, sizes that
+        differ, an input connected twice.
+    """
     if not isinstance(items, list):
         raise ParameterError('connections: expected a list of "a.y -> b.u" texts')
     if len(items) > MAX_CONNECTIONS:

@@ -199,7 +199,27 @@ def _line_of(field: str, locator: Locator) -> int | None:
 
 
 def parse_system(text: str, path: str = "<system>", folder: Path = Path(".")) -> SystemSpec:
-    """Check the system file ``text`` (read from ``path``); :class:`ParameterError` names line and field."""
+    """Check the system file ``text`` whole and make its FMU definitions (in memory: nothing is written).
+
+    Parameters
+    ----------
+    text : str
+        The file's contents.
+    path : str
+        How messages name the file (``dcmotor.toml``).
+    folder : Path
+        Where relative paths of the file (a ``csv`` source's, the report's reference) are read from.
+
+    Returns
+    -------
+    SystemSpec
+        The checked system, its designed gains in ``notes``.
+
+    Raises
+    ------
+    ParameterError
+        One line ``path:line: field: what is wrong`` (``path:line:column:`` for an expression).
+    """
     locator = Locator(text)
     try:
         return _parse(text, path, folder, locator)
@@ -243,7 +263,23 @@ def _parse(text: str, path: str, folder: Path, locator: Locator) -> SystemSpec:
 
 
 def load_system(path: Path | str) -> SystemSpec:
-    """Read and check the system file ``path`` (see :func:`parse_system`)."""
+    """Read and check the system file ``path``.
+
+    Parameters
+    ----------
+    path : Path or str
+        The TOML file (UTF-8, at most :data:`MAX_FILE_BYTES`).
+
+    Returns
+    -------
+    SystemSpec
+        As :func:`parse_system`; relative paths in the file are read from its folder.
+
+    Raises
+    ------
+    ParameterError
+        The file cannot be read, is too big, or any mistake of :func:`parse_system`.
+    """
     path = Path(path)
     try:
         with open(path, "rb") as handle:

@@ -51,7 +51,15 @@ class SystemSpec:
         return [d for spec in self.components.values() for d in spec.definitions]
 
     def scenario(self):
-        """The :class:`~fmus.scenarios.Scenario` of this system: run, export, sweep and report work on it."""
+        """The :class:`~fmus.scenarios.Scenario` of this system: run, export, sweep and report work on it.
+
+        Returns
+        -------
+        fmus.scenarios.Scenario
+            Named as the file; its FMUs ``<name>_<component>``, instances in the file's order, the
+            ``[values]`` as start values, the experiment as defaults, summary, figure and sweep measure
+            from ``[[report.compare]]``.
+        """
         from ..scenarios import Scenario
         experiment = self.experiment
         return Scenario(

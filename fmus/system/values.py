@@ -161,7 +161,27 @@ _CHECKS = {
 
 
 def check_value(field: Field, where: str, value):
-    """``value`` checked against ``field`` (type, shape, limits); numbers as floats, arrays as numpy arrays."""
+    """``value`` checked against ``field``: its type, shape and limits.
+
+    Parameters
+    ----------
+    field : Field
+        What the value must be.
+    where : str
+        The field's full name in messages (``components.plant.A``).
+    value
+        The value as :mod:`tomllib` read it.
+
+    Returns
+    -------
+    object
+        Numbers as floats, vectors and matrices as numpy arrays, the rest as read.
+
+    Raises
+    ------
+    ParameterError
+        Naming ``where`` (and the row of a matrix, the entry of a vector) and the limit exceeded.
+    """
     if field.type == "choice":
         return _choice(where, value, field.choices)
     checked = _CHECKS[field.type](where, value)
