@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "native"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "fmus" / "native"))
 
 from native_harness import Unzipped, compile_importer, read_csv, run as run_importer, system_script  # noqa: E402
 

@@ -17,7 +17,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "native"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "fmus" / "native"))
 
 from native_harness import compile_importer  # noqa: E402
 from python_free_root import alone_lines, enter_command, first_of_each_kind, make_root, run_in_root, unzip  # noqa: E402
