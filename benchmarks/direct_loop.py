@@ -6,7 +6,7 @@ input segments (value at ``t`` and a slope: interpolated from producers already 
 extrapolated from the previous communication point otherwise, held on the first step), the
 same outputs read after every step and one recorded row per communication point.  What it
 leaves out is exactly what the FMU path adds: the master's bookkeeping, ctypes, the C bridge and
-the generic slave.  ``tests/test_benchmarks.py`` checks that both give the same trajectory.
+the generic slave.  ``tests/benchmarks/test_benchmarks.py`` checks that both give the same trajectory.
 
     loop = DirectLoop(definitions, components, connections)
     times, rows = loop.run(stop_time, step)

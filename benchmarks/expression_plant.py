@@ -78,15 +78,7 @@ class ProjectStyleDuffing(HandDuffing):
     def advance(self, t, h, inputs):
         u = inputs["u"]
         count = substep_count(h, self.max_substep)
-        dt, x = h / count, self.x
-        for i in range(count):
-            s = i * dt
-            k1 = self._rhs(x, float(u.at(s)[0]))
-            k2 = self._rhs(x + dt / 2 * k1, float(u.at(s + dt / 2)[0]))
-            k3 = self._rhs(x + dt / 2 * k2, float(u.at(s + dt / 2)[0]))
-            k4 = self._rhs(x + dt * k3, float(u.at(s + dt)[0]))
-            x = x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-        self.x = x
+        self.x = rk4_step(lambda s, x: self._rhs(x, float(u.at(s - t)[0])), t, self.x, h, count)
 
 
 #: what is measured: name -> the block put into the slave (None: the FMU's own expression block)

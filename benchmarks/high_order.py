@@ -9,7 +9,7 @@
   own eigenvalues moved left (``shift``), which the eigenvector placement reaches to 1e-12 at
   n = 50 where Ackermann's controllability matrix has condition 1e30.
 
-Used by ``benchmarks/cosimulation_costs.py`` and ``tests/test_high_order.py``.
+Used by ``benchmarks/cosimulation_costs.py`` and ``tests/fmus/test_high_order.py``.
 """
 
 from __future__ import annotations

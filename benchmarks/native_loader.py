@@ -1,6 +1,6 @@
 """The portable FMU binary (loader + bridge, fmus/native) measured in one run.
 
-* agreement of a C host (tests/native/importer.c, no libpython, empty environment) with our Jacobi
+* agreement of a C host (tests/fmus/native/importer.c, no libpython, empty environment) with our Jacobi
   master on ``ship`` (0.2 s, h = 1e-4) and ``ltv-ls-bounded`` (2 s, h = 1e-3);
 * first and second instantiation of ``ship_observer`` in a C host (the FMU starts Python and
   imports numpy/scipy and its code) and in a fresh Python process under fmpy (Python running);
@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "native"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "fmus" / "native"))
 
 from native_harness import Unzipped, compile_importer, read_csv, run as run_importer, system_script  # noqa: E402
 

@@ -2,7 +2,7 @@
 
 Per kind (the first FMU of each kind among the scenarios), FMI 2.0: the size of the standalone
 ``.fmu`` and of the default one, the runtime's files and bytes (uncompressed), and the time of the
-first ``fmi2Instantiate`` in a fresh C importer process (``tests/native/importer.c``) inside a root
+first ``fmi2Instantiate`` in a fresh C importer process (``tests/fmus/native/importer.c``) inside a root
 file system without Python (chroot; the FMU starts its own interpreter and imports numpy and its
 code) -- the median of ``--repeat`` processes.  Issue 28's budget: <= 30 MB and <= 1 s per FMU.
 
@@ -17,7 +17,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "native"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "fmus" / "native"))
 
 from native_harness import compile_importer  # noqa: E402
 from python_free_root import alone_lines, enter_command, first_of_each_kind, make_root, run_in_root, unzip  # noqa: E402

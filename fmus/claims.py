@@ -8,7 +8,7 @@ with both numbers; a metric missing from a run (e.g. the paper's table on change
 holds (at its end, over the whole run, over its last 20 %, ...), :data:`REFERENCE_INTERVAL` the same
 for the agreement with the monolithic reference.
 
-The checks name metrics of the scenarios' summaries; ``tests/test_report.py`` holds them to every
+The checks name metrics of the scenarios' summaries; ``tests/fmus/test_report.py`` holds them to every
 scenario (each check's metric exists, every metric has an interval).
 """
 

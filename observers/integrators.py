@@ -131,7 +131,7 @@ def expm(M: np.ndarray) -> np.ndarray:
     ``numpy.testing`` and ``numpy.f2py`` through its array-API layer), which every LTI FMU, the
     config checks and ``obsfmu run ship`` would otherwise pay.  Agrees with ``scipy.linalg.expm``
     (the same algorithm) to ~1e-13 relative, also on the highly non-normal closed loops of
-    high-order designs (``tests/test_expm.py``).
+    high-order designs (``tests/observers/test_integrators_expm.py``).
     """
     A = np.asarray(M, dtype=float)
     if A.ndim != 2 or A.shape[0] != A.shape[1]:

@@ -9,7 +9,7 @@ Two implementations of the same arithmetic, chosen in one place (:class:`Stepper
   fmus/native/loader.c), used when every instance is an obsfmu FMI 2.0 FMU with the one-call step
   (``obsfmuDoStepPlanned``) and one of their binaries has the round.  The Python round costs ~15 numpy
   operations and a ctypes call per instance and round, several microseconds that a co-simulation of
-  small blocks pays every step; tests/test_round.py proves both give the same numbers bit for bit.
+  small blocks pays every step; tests/fmus/master/test_round.py proves both give the same numbers bit for bit.
 
 Coupling.  ``linear`` feeds each input as a straight line over the step (FMI input derivatives): it
 *interpolates* between the producer's outputs at ``t`` and ``t + h`` when the producer has already

@@ -40,7 +40,7 @@ def reference(sections: dict[str, tuple[str, tuple[Field, ...]]]) -> str:
     lines = ["# System file: field reference", "",
              "Generated from the registry of component types (`fmus/system/schema.py`, `linear_types.py`, "
              "`signal_types.py`) by `obsfmu show --fields`; do not edit "
-             "by hand (`tests/test_system_file.py` checks that this file is the generated one).", "",
+             "by hand (`tests/fmus/system/test_system_file.py` checks that this file is the generated one).", "",
              "Units: *(signal)* is the unit the component's `unit` field gives, *(time unit)* the file's "
              "`time_unit`.", "", "## Value types", ""]
     lines += [f"- **{name}**: {text}" for name, text in FIELD_TYPES.items()]

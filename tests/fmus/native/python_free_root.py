@@ -4,7 +4,7 @@ The root holds the importer, the manylinux2014 system libraries it and the FMUs 
 :data:`fmus.standalone.SYSTEM_LIBRARIES`, copied from this machine) and the FMUs unzipped under
 ``/fmus``.  It is entered with ``unshare --mount --map-root-user chroot`` (or plain ``chroot`` when
 user namespaces are not permitted but the process may chroot) and an empty environment.
-Used by ``tests/native/test_standalone.py`` and ``benchmarks/standalone_size.py``.
+Used by ``tests/fmus/native/test_standalone.py`` and ``benchmarks/standalone_size.py``.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """The noise kinds (fmus/runtime/kinds/noise.py) as FMUs: the documented white sequence computed here,
 reproducible by seed whatever the step, band-limited as the block, noise added on a connection of a
-co-simulation.  (The statistics of the sequences: tests/test_noise.py.)"""
+co-simulation.  (The statistics of the sequences: tests/plants/test_noise.py.)"""
 
 from __future__ import annotations
 

@@ -93,7 +93,7 @@ def test_an_interrupted_sweep_resumes_with_only_the_missing_samples(client, buil
     # Ctrl-C as in a terminal, also when the tests run with SIGINT ignored (a shell's background job):
     # Python inherits an ignored SIGINT and then raises no KeyboardInterrupt
     first = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                             cwd=Path(__file__).resolve().parents[1],
+                             cwd=Path(__file__).resolve().parents[3],
                              preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     _wait_for(lambda: list((out / "samples").glob("part-*.parquet")) or first.poll() is not None, 120,
               "the first stored samples")
@@ -105,7 +105,7 @@ def test_an_interrupted_sweep_resumes_with_only_the_missing_samples(client, buil
     assert 0 < len(kept) < 10 and all(row["status"] == "ok" for row in kept.values())
 
     second = subprocess.run(command, capture_output=True, text=True, timeout=300,
-                            cwd=Path(__file__).resolve().parents[1])
+                            cwd=Path(__file__).resolve().parents[3])
     assert second.returncode == 0, second.stderr
     assert f"{len(kept)} of 10 samples already stored; computing {10 - len(kept)}" in second.stderr
     rows = load_rows(out).to_pylist()

@@ -1,6 +1,6 @@
 """The rows of the fault table (docs/faults.md) through the FMI 3.0 binary, called with ctypes.
 
-The slave is the one of the FMI 2.0 FMUs (``tests/test_faults_*.py`` try every row on every kind
+The slave is the one of the FMI 2.0 FMUs (``tests/faults/test_faults_*.py`` try every row on every kind
 through the FMI 2.0 binary); what the FMI 3.0 binary adds is the way it treats each status: a
 refused step (fmi3Discard) leaves the FMU in step mode at the same time with its state, and the next
 step works; a call the slave refuses (fmi3Error, nothing changed) leaves the FMU in its state; a call

@@ -3,7 +3,7 @@
 The declarations come from the definition (``FmuDefinition.variable_step``) and the binary; the
 discrete GPEBO FMUs take one sample per step and declare ``canHandleVariableCommunicationStepSize
 = false``.  ``canNotUseMemoryManagementFunctions`` is exercised by the C importer, which gives
-no allocator (tests/native/importer.c).
+no allocator (tests/fmus/native/importer.c).
 """
 
 import zipfile

@@ -33,7 +33,7 @@ from fmus.campaign.runner import run_campaign
 from fmus.scenarios import ensure_fmus, get
 
 OBSFMU = [sys.executable, "-m", "fmus.cli"]
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _start(args, **kwargs) -> subprocess.Popen:

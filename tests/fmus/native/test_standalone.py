@@ -173,7 +173,7 @@ def test_a_python_host_runs_a_standalone_fmu_on_its_own_interpreter(standalone_d
 
 
 def test_export_standalone_packs_fmus_that_carry_their_runtime(standalone_dir, tmp_path, capsys):
-    from fmus import cli
+    from fmus.cli import main as cli
     assert cli.main(["export", "ship", "--format", "ssp", "--standalone", "--build-dir", str(standalone_dir),
                      "--out", str(tmp_path)]) == 0
     with zipfile.ZipFile(tmp_path / "ship.ssp") as package:

@@ -14,7 +14,7 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.signal import place_poles
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[3]
 
 # the motor: L di/dt = -R i - k w + V, J dw/dt = k i - b w, dtheta/dt = w (R 2, L 0.5, k 0.1, J 0.02, b 0.2)
 A = np.array([[-4.0, -0.2, 0.0], [5.0, -10.0, 0.0], [0.0, 1.0, 0.0]])

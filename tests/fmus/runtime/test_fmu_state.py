@@ -33,7 +33,7 @@ def test_every_fmu_declares_and_validates(fmus):
         assert validate_fmu(str(path)) == [], model
         cs = read_model_description(str(path)).coSimulation
         assert cs.canGetAndSetFMUstate and cs.canSerializeFMUstate and cs.canInterpolateInputs, model
-        # canHandleVariableCommunicationStepSize differs per kind: tests/native/test_capabilities.py
+        # canHandleVariableCommunicationStepSize differs per kind: tests/fmus/native/test_capabilities.py
 
 
 def test_state_round_trip_is_bit_for_bit(fmus):

@@ -41,7 +41,7 @@ CASES = {
     "previous": (kinds.table_source_definition("previous", [0.3, 0.805], [2.0, 5.0], "previous"),
                  lambda t: np.where(t >= 0.805, 5.0, 2.0)),
     "prbs": (kinds.prbs_source_definition("prbs", 0.5, bit_period=0.05, seed=9, register_length=5),
-             lambda t: PRBS(0.5, 0.05, 9, 5).value(t)),     # the sequence itself: tests/test_sources.py
+             lambda t: PRBS(0.5, 0.05, 9, 5).value(t)),     # the sequence itself: tests/plants/test_sources.py
 }
 
 

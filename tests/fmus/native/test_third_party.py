@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 #: Debian package -> a file it installs (None: a program of that name)
 FMUSIM_PACKAGES = {"gcc": None, "libxml2-dev": "/usr/include/libxml2/libxml/parser.h",
                    "zlib1g-dev": "/usr/include/zlib.h", "libminizip-dev": "/usr/include/minizip/unzip.h",

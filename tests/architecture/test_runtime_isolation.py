@@ -11,7 +11,7 @@ from pathlib import Path
 
 from fmus import builder
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 RUNTIME = "fmus.runtime"
 
 
