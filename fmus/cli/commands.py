@@ -142,8 +142,9 @@ def cmd_report(args) -> int:
         from ..scenarios import get
         from ..system.commands import scenario_key
         key = scenario_key(args)
-        return run_and_report(out, build_dir, [key], 1, lambda: [name for name in SCENARIOS if report.has_run(
-            out, name)] + [get(key).name])
+        name = get(key).name
+        return run_and_report(out, build_dir, [key], 1, lambda: [n for n in SCENARIOS if n != name and report.has_run(
+            out, n)] + [name])
     missing = [name for name in SCENARIOS if not report.has_run(out, name)]
     return run_and_report(out, build_dir, missing, args.jobs)
 

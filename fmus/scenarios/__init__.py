@@ -33,7 +33,7 @@ from ..result import Result, RunInfo
 if TYPE_CHECKING:
     from ..campaign.measures import Measure
 
-__all__ = ["Scenario", "Summary", "SCENARIOS", "get", "add", "ensure_fmus", "ensure_all", "run", "run_info", "parse_overrides",
+__all__ = ["Scenario", "Summary", "SCENARIOS", "get", "add", "is_added", "ensure_fmus", "ensure_all", "run", "run_info", "parse_overrides",
            "system", "changed_parameters"]
 
 
@@ -118,6 +118,11 @@ def add(key: str, scenario: Scenario) -> None:
     """Make :func:`get` (and so :func:`run`, the exports and the campaign) find ``scenario`` under ``key`` in
     this process: :func:`fmus.system.scenario_from_file` adds a system file's under its resolved path."""
     _ADDED[key] = scenario
+
+
+def is_added(key: str) -> bool:
+    """A scenario was :func:`add` ed under ``key`` in this process."""
+    return key in _ADDED
 
 
 def _items(scenario: Scenario):

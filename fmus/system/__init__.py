@@ -63,12 +63,14 @@ def resolve(name: str):
     fmus.scenarios.Scenario
     """
     from .. import scenarios
-    return scenario_from_file(name) if is_system_file(name) else scenarios.get(name)
+    known = name in scenarios.SCENARIOS or scenarios.is_added(name)
+    return scenarios.get(name) if known or not is_system_file(name) else scenario_from_file(name)
 
 
 def is_system_file(name: str) -> bool:
-    """``name`` is a path to a ``.toml`` file (not a scenario's name)."""
-    return name.endswith(".toml") and Path(name).is_file()
+    """``name`` is a path to something readable that is not a folder (a file, or a pipe: ``<(obsfmu show ...)``)."""
+    path = Path(name)
+    return path.exists() and not path.is_dir()
 
 
 def field_reference() -> str:

@@ -316,3 +316,17 @@ def test_the_output_interval_and_a_reference_csv_named_by_the_file(tmp_path):
     assert done.returncode == 0, done.stderr
     line = next(line for line in done.stdout.splitlines() if line.startswith("reference: "))
     assert line.startswith("reference: ref.csv, max |run - reference| 0 over ") and "at its 201 times" in line, line
+
+
+def test_a_system_file_read_from_a_pipe(tmp_path):
+    """``obsfmu run --config <(obsfmu show ...)``: the file is read once, from a pipe."""
+    fifo = tmp_path / "system"
+    os.mkfifo(fifo)
+    environment = {**os.environ, "PYTHONPATH": str(ROOT)}
+    process = subprocess.Popen([sys.executable, "-m", "fmus.cli", "run", "--config", str(fifo), "--step", "1e-3",
+                                "--build-dir", "build"], cwd=tmp_path, env=environment, stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True)
+    fifo.write_text(motor_file())
+    out, err = process.communicate(timeout=600)
+    assert process.returncode == 0, err
+    assert out.startswith("dcmotor: 2000 steps to t = 2 s"), out
