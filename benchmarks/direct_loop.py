@@ -34,7 +34,7 @@ def _parameters(definition: FmuDefinition, start: dict[str, float]) -> dict[str,
                 flat[i] = float(start[name])
                 known.add(name)
         params[p.name] = p.array(flat)
-    unknown = set(start) - known
+    unknown = set(start) - known - {n for port in definition.inputs for n in port.element_names}
     if unknown:
         raise ValueError(f"{definition.model_name}: start values of unknown parameters {sorted(unknown)}")
     return params
@@ -51,7 +51,7 @@ class _Node:
         self.outputs = [(p.name, p.size) for p in definition.outputs]
         self.input_names = [n for p in definition.inputs for n in p.element_names]
         self.output_names = [n for p in definition.outputs for n in p.element_names]
-        self.values = np.zeros(len(self.input_names))
+        self.values = np.array([float(start.get(n, 0.0)) for n in self.input_names])  # unconnected: their start
 
     def split(self, flat: np.ndarray) -> dict[str, np.ndarray]:
         ports, offset = {}, 0

@@ -27,7 +27,7 @@ from .loop import Loop, Progress, fixed
 from .recorder import MemoryRecorder, Recorder
 from .round import Stepper
 from .system import Component, System
-from .wiring import wire
+from .wiring import unconnected_inputs, wire
 
 __all__ = ["Session", "cosimulate", "open_instance", "ORDERS", "COUPLINGS"]
 
@@ -64,6 +64,18 @@ def check_run_settings(stop_time, step, order, start_time, coupling, tolerance) 
         raise SimulationError(f"stop_time: must be after start_time {start_time}, got {stop_time}")
 
 
+def _require_inputs(missing: list[str]) -> None:
+    """An input nobody connected silently reads its start value (0): an error naming it, unless the
+    caller gave that value explicitly (``Component(..., start={"u": 0.0})``)."""
+    if missing:
+        more = f" (and {len(missing) - 1} more: {', '.join(missing[1:4])}{', ...' if len(missing) > 4 else ''})" \
+            if len(missing) > 1 else ""
+        name = missing[0].partition(".")[2]
+        raise SimulationError(f"{missing[0]} is not connected: connect it or give it a start value "
+                              f"(Component(..., start={{{name!r}: value}}), --set, or [values] in a system file)"
+                              + more)
+
+
 class Session:
     """The FMUs of ``system`` extracted and instantiated once, run as often as needed.
 
@@ -88,7 +100,9 @@ class Session:
         try:
             for component in system.components:
                 self.instances[component.name] = open_instance(component, self.logger)
-            wire(self.instances, system.connections)
+            connected = wire(self.instances, system.connections)
+            _require_inputs(unconnected_inputs(self.instances, connected,
+                                               {c.name: c.start for c in system.components}))
             for inst in self.instances.values():
                 inst.instantiate()
         except BaseException:

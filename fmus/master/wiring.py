@@ -8,15 +8,16 @@ from .errors import SimulationError, closest
 from .instance import Instance
 from .system import Connection
 
-__all__ = ["wire"]
+__all__ = ["wire", "unconnected_inputs"]
 
 
-def wire(instances: dict[str, Instance], connections: list[Connection]) -> None:
+def wire(instances: dict[str, Instance], connections: list[Connection]) -> set[tuple[str, str]]:
     """Resolve connections element-wise: each input gets the index of its producer's output.
 
     The shared output vector holds every instance's outputs in the order of ``instances``; each
     instance gets ``input_vrs``, ``input_sources`` (indices into that vector) and ``stepped_before``
-    (its producer comes first in a Gauss-Seidel round), then prepares its buffers.
+    (its producer comes first in a Gauss-Seidel round), then prepares its buffers.  Returns the
+    connected inputs as ``(instance, input element)`` pairs.
     """
     offset, offsets = 0, {}
     for inst in instances.values():
@@ -48,6 +49,16 @@ def wire(instances: dict[str, Instance], connections: list[Connection]) -> None:
         inst.input_sources = np.array([source for _, source, _ in wires[name]], dtype=int)
         inst.stepped_before = np.array([producer < rank[name] for _, _, producer in wires[name]], dtype=bool)
         inst.prepare()
+    return seen
+
+
+def unconnected_inputs(instances: dict[str, Instance], connected: set[tuple[str, str]],
+                       given: dict[str, dict]) -> list[str]:
+    """``instance.input`` of every input neither connected nor given a start value in ``given[instance]``."""
+    return [f"{name}.{variable}" for name, inst in instances.items()
+            for variable, description in inst.variables.items()
+            if description.causality == "input" and (name, variable) not in connected
+            and variable not in given.get(name, {})]
 
 
 def _split(path: str) -> tuple[str, str]:

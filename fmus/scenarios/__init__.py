@@ -33,8 +33,8 @@ from ..result import Result, RunInfo
 if TYPE_CHECKING:
     from ..campaign.measures import Measure
 
-__all__ = ["Scenario", "Summary", "SCENARIOS", "get", "add", "is_added", "ensure_fmus", "ensure_all", "run", "run_info", "parse_overrides",
-           "system", "changed_parameters"]
+__all__ = ["Scenario", "Summary", "SCENARIOS", "get", "add", "is_added", "ensure_fmus", "ensure_all", "run", "run_info",
+           "parse_overrides", "system", "changed_parameters", "check_step"]
 
 
 @dataclass
@@ -324,11 +324,12 @@ def run(name: str, build_dir: Path | str = "build", *, stop_time: float | None =
     if (order or scenario.order) == "adaptive" and floor and tolerance < floor[0]:
         raise SimulationError(f"{name}: the adaptive master cannot run this scenario at tol {tolerance:g} (use a "
                               f"tolerance of at least {floor[0]:g}, or a fixed step): {floor[1]}")
-    fmus = ensure_fmus(scenario, Path(build_dir), fmi_version=fmi_version)
-    the_system = system(scenario, fmus, overrides)
     settings = dict(stop_time=scenario.stop_time if stop_time is None else stop_time,
                     step=scenario.step if step is None else step,
                     order=order or scenario.order, coupling=coupling or scenario.coupling)
+    check_step(scenario, **settings)
+    fmus = ensure_fmus(scenario, Path(build_dir), fmi_version=fmi_version)
+    the_system = system(scenario, fmus, overrides)
     info = run_info(scenario, fmus, overrides, **settings)
     with Session(the_system, echo_log=False) as session:
         result = session.run(**settings, progress=progress, tolerance=tolerance, recorder=recorder,
@@ -338,6 +339,30 @@ def run(name: str, build_dir: Path | str = "build", *, stop_time: float | None =
     result.info = info
     summary = scenario.summarize(result) if scenario.summarize and not result.interrupted else None
     return result, summary
+
+
+#: a step this many times the scenario's default gets a warning (README: "Choosing the communication step")
+STEP_WARNING_RATIO = 10.0
+
+
+def check_step(scenario: Scenario, stop_time: float, step: float, order: str, coupling: str) -> None:
+    """A step longer than the run is an error naming ``--step``; a fixed step far beyond the scenario's
+    default gets one line on stderr with the expected growth of the coupling error.
+
+    The coupling error of a fixed-step run grows like ``h^2`` with linear coupling and like ``h`` with
+    held inputs (README, "Choosing the communication step"), so a step ``r`` times the default costs
+    about ``r^2`` (``r``) times the error the scenario's default was chosen for."""
+    unit = scenario.time_unit
+    if step > stop_time:
+        raise SimulationError(f"--step {step:g} {unit}: longer than the run (--stop-time {stop_time:g} {unit}); "
+                              f"{scenario.name}'s default step is {scenario.step:g} {unit}")
+    ratio = step / scenario.step
+    if order != "adaptive" and ratio > STEP_WARNING_RATIO:
+        power = 2 if coupling == "linear" else 1
+        print(f"obsfmu: warning: --step {step:g} {unit} is {ratio:.3g} times {scenario.name}'s default "
+              f"{scenario.step:g} {unit}: with {coupling} coupling the coupling error grows like h^{power}, to about "
+              f"{ratio ** power:.2g} times the error at the default (README: Choosing the communication step)",
+              file=sys.stderr)
 
 
 def _print_warnings(session: Session) -> None:

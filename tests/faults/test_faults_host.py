@@ -258,7 +258,7 @@ def _file_size_limit(limit: int):
 def test_a_csv_that_fills_the_disk_keeps_its_complete_rows_and_says_where(build_dir, tmp_path):
     ensure_fmus(get("ship"), build_dir)
     csv = tmp_path / "out.csv"
-    done = subprocess.run(OBSFMU + ["run", "ship", "--build-dir", str(build_dir), "--step", "1e-3", "--stop-time", "100",
+    done = subprocess.run(OBSFMU + ["run", "ship", "--build-dir", str(build_dir), "--step", "2e-4", "--stop-time", "100",
                                     "--csv", str(csv)], capture_output=True, text=True, cwd=ROOT, timeout=300,
                           preexec_fn=_file_size_limit(1_000_000))
     assert done.returncode == 2, done.stderr

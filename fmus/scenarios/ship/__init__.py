@@ -194,7 +194,7 @@ SCENARIO = Scenario(
     description="paper 002: ship course observer + modal state feedback (free motion, 0..1 s)",
     definitions=definitions,
     components=[("plant", "ship_plant", {}), ("observer", "ship_observer", {}),
-                ("controller", "ship_controller", {})],
+                ("controller", "ship_controller", {"r": 0.0})],
     connections=[
         Connection("plant.y", "observer.y"),
         Connection("controller.u", "observer.u"),

@@ -69,6 +69,8 @@ BAD = {  # id: (argv with {B} = build dir, {T} = tmp dir, {RO} = unwritable dir;
     "stop-time nan": (["run", "ship", "--stop-time", "nan"], "argument --stop-time: must be a positive finite number"),
     "stop-time words": (["run", "ship", "--stop-time", "5 parsec"], "argument --stop-time: '5 parsec' is not a time"),
     "step 0": (["run", "ship", "--step", "0"], "argument --step: must be a positive finite number"),
+    "step > stop time": (["run", "ship", "--step", "2", "--stop-time", "1"],
+                         "--step 2 s: longer than the run (--stop-time 1 s); ship's default step is 2e-05 s"),
     "tol -1": (["run", "ship", "--tol", "-1"], "argument --tol: must be a positive finite number"),
     "export step 0": (["export", "ship", "--format", "ssp", "--out", "{T}/x", "--step", "0"],
                       "argument --step: must be a positive finite number"),
@@ -340,3 +342,16 @@ def test_ctrl_c_stops_every_worker_after_its_step_without_a_traceback(build_dir,
         assert f"{name}: interrupted at t = " in stdout
         assert (out / f"{name}.partial.csv").exists() and not (out / f"{name}.csv").exists()
     assert stdout.index("ship: interrupted") < stdout.index("uio-ftdrem: interrupted")
+
+
+def test_a_step_far_beyond_the_default_warns_with_the_expected_growth(ship_build, capsys):
+    """``--step 0.3`` on ship (default 2e-5 s) ran to an error of 1.75e4 without a word: now one line says
+    how far the step is from the default and how the coupling error grows; a step near it says nothing."""
+    assert cli.main(["run", "ship", "--build-dir", ship_build, "--step", "0.3", "--stop-time", "0.6"]) == 0
+    warnings = [line for line in capsys.readouterr().err.splitlines() if "warning: --step" in line]
+    assert warnings == ["obsfmu: warning: --step 0.3 s is 1.5e+04 times ship's default 2e-05 s: with linear "
+                        "coupling the coupling error grows like h^2, to about 2.2e+08 times the error at the "
+                        "default (README: Choosing the communication step)"]
+    assert cli.main(["run", "ship", "--build-dir", ship_build, "--step", "1e-4", "--stop-time", "0.01",
+                     "--coupling", "hold"]) == 0
+    assert "warning: --step" not in capsys.readouterr().err

@@ -96,7 +96,7 @@ def test_fmu_copies_carry_the_start_values(build_dir, tmp_path, fmi_version):
     result = simulate_fmu(str(copy), stop_time=1e-3, step_size=1e-3)
     x = result["x"][0] if fmi_version == 3 else [result["x[1]"][0], result["x[2]"][0]]
     assert list(x) == [2.0, 0.25]
-    with Session(System([Component("plant", copy)], []), echo_log=False) as session:  # the second run resets
+    with Session(System([Component("plant", copy, {"u": 0.0})], []), echo_log=False) as session:  # the second run resets
         runs = [session.run(1e-3, 1e-3) for _ in range(2)]
     assert all(list(r.values[0][[r.columns.index("plant.x[1]"), r.columns.index("plant.x[2]")]]) == [2.0, 0.25]
                for r in runs)

@@ -8,7 +8,7 @@ from fmus.scenarios.ship import SCENARIO
 
 
 def ship_system(fmus, connections=None, start=None):
-    components = [Component(i, fmus[m], dict(start.get(i, {}) if start else {})) for i, m, _ in SCENARIO.components]
+    components = [Component(i, fmus[m], {**given, **(start or {}).get(i, {})}) for i, m, given in SCENARIO.components]
     return System(components, connections if connections is not None else list(SCENARIO.connections))
 
 
@@ -23,6 +23,19 @@ def ship_system(fmus, connections=None, start=None):
 def test_wiring_errors(ship_fmus, connections, message):
     with pytest.raises(SimulationError, match=message.replace("(", r"\(")):
         cosimulate(ship_system(ship_fmus, connections), 0.01, 0.001)
+
+
+def test_an_unconnected_input_is_an_error_naming_it_unless_given(ship_fmus):
+    """Forgetting ``controller.u -> observer.u`` left the ship observer reading u = 0 (0.48 A off in a
+    user's DC motor): now an error naming the input; an explicit start value makes it deliberate."""
+    connections = [c for c in SCENARIO.connections if c.target != "observer.u"]
+    with pytest.raises(SimulationError, match=r"^observer.u is not connected: connect it or give it a start value"):
+        cosimulate(ship_system(ship_fmus, connections), 0.01, 0.001)
+    result = cosimulate(ship_system(ship_fmus, connections, start={"observer": {"u": 0.0}}), 0.01, 0.001)
+    assert result.time[-1] == pytest.approx(0.01)
+    without_r = [Component(i, ship_fmus[m]) for i, m, _ in SCENARIO.components]
+    with pytest.raises(SimulationError, match=r"^controller.r is not connected"):
+        cosimulate(System(without_r, list(SCENARIO.connections)), 0.01, 0.001)
 
 
 def test_bad_run_settings(ship_fmus):

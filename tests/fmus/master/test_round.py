@@ -69,7 +69,7 @@ def test_the_round_in_one_call_is_the_python_round(build_dir, monkeypatch, name,
 def test_a_failing_member_is_named(ship_fmus, faulty_fmus, monkeypatch):
     """The ship's FMUs and, last, a plant whose step fails inside the slave (tests/faulty_user_function.py)."""
     scenario = get("ship")
-    components = system(scenario, ship_fmus).components + [Component("faulty", faulty_fmus[2], {"x0[1]": 0.0})]
+    components = system(scenario, ship_fmus).components + [Component("faulty", faulty_fmus[2], {"x0[1]": 0.0, "u": 0.0})]
     with Session(System(components, list(scenario.connections)), echo_log=False) as session:
         with pytest.raises(SimulationError, match=r"faulty: doStep\(t=0, h=0.001\) with its inputs failed "
                                                   r"\(status 3 \(error\)\); FMU says: .*"):

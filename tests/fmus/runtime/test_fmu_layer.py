@@ -222,7 +222,7 @@ def test_logging_after_a_master_run_does_not_crash_the_host(ship_fmus, capfd):
     import gc
 
     from fmus.master import Component, System, cosimulate
-    cosimulate(System([Component("plant", ship_fmus["ship_plant"])], []), 0.01, 1e-3)
+    cosimulate(System([Component("plant", ship_fmus["ship_plant"], {"u": 0.0})], []), 0.01, 1e-3)
     gc.collect()
     slave, _ = open_slave(ship_fmus["ship_observer"], "after")
     slave.setupExperiment(startTime=0.0)
