@@ -37,7 +37,7 @@ def cmd_build(args) -> int:
     out = check_directory("--out", args.out)
     if design:
         paths = [build_fmu(definition, build_folder(out, args.fmi_version), fmi_version=args.fmi_version,
-                           standalone=args.standalone) for definition in design.definitions()]
+                           standalone=args.standalone) for definition in design.definitions(design.experiment())]
     else:
         paths = build_all(out, args.fmi_version, args.standalone)
     return 1 if report_built(paths) else 0
