@@ -13,7 +13,10 @@ the packages).  Then:
   crashed the host; now that call is refused (the run ends with fmusim's error status, the state file is
   written).  The same fmusim with that one call fixed saves a state at t1 and restores it in a second run
   from t1, which continues like one run through (to 1e-13 relative: its grid starts at t1);
-* a simple FMU agrees with fmpy (the project's master is built on it) to 1e-12 relative.
+* a simple FMU agrees with fmpy (the project's master is built on it) to 1e-12 relative;
+* without step and stop options both tools run an FMU's own ``DefaultExperiment`` (fmuCheck: its start and
+  stop only) -- the GPEBO FMUs, which refuse any step but 1 s, included.
+The scenarios replayed FMU by FMU in fmusim: ``test_fmusim_replay.py``.
 """
 
 from __future__ import annotations
