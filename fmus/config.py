@@ -59,7 +59,7 @@ from observers.modal import (MAX_TRANSIENT_GROWTH, desired_poles, is_controllabl
                              place, transient_growth)
 from observers.standard_forms import FORMS
 
-from .runtime.definition import FmuDefinition, valid_identifier
+from .runtime.definition import FmuDefinition, experiment, valid_identifier
 from .runtime.kinds.linear import feedback_definition, observer_definition, plant_definition
 
 if sys.version_info >= (3, 11):
@@ -97,8 +97,16 @@ class LinearDesign:
     controller_poles: np.ndarray | None
     build_plant: bool
 
-    def definitions(self) -> list[FmuDefinition]:
-        """FMU definitions: observer, then plant and controller when requested."""
+    def experiment(self) -> dict[str, float]:
+        """The design's own ``DefaultExperiment``: 10 time constants of its slowest designed pole (the errors
+        decay by ``e^-10``), at a hundredth of the time constant of its fastest, each to one digit."""
+        poles = np.concatenate([self.observer_poles, [] if self.controller_poles is None else self.controller_poles])
+        slowest, fastest = np.abs(np.real(poles)).min(), np.abs(poles).max()
+        return experiment(float(f"{10 / slowest:.1g}"), float(f"{0.01 / fastest:.1g}"))
+
+    def definitions(self, default_experiment: dict[str, float] | None = None) -> list[FmuDefinition]:
+        """FMU definitions: observer, then plant and controller when requested; ``default_experiment``: the
+        FMUs' (None: none, a scenario built on the design fills in its own)."""
         text = self.description
         result = [observer_definition(f"{self.name}_observer", self.model, self.N, self.x_hat0,
                                       self.units, "", self.observer_poles)]
@@ -107,6 +115,8 @@ class LinearDesign:
                                            f"{text} -- plant" if text else ""))
         if self.K is not None:
             result.append(feedback_definition(f"{self.name}_controller", self.K, self.units, ""))
+        for definition in result:
+            definition.default_experiment = default_experiment
         return result
 
 

@@ -19,11 +19,18 @@ whose ``modelDescription.xml`` declares the system's start values and whose
 binary sets them itself at instantiation and reset (``resources/obsfmu_start.txt``,
 ``fmus/native/loader_common.h``); instances of one model with different start
 values get one copy each.  The SSD also declares the system's outputs: one
-system connector ``<instance>.<variable>`` per output of every component and
+system connector ``<instance>_<variable>`` per output of every component (``plant_y``,
+``observer_theta_hat_1`` for ``observer.theta_hat[1]``) and
 (``system_outputs=True``, the default) a connection to it, so a container built
 from it exposes every output.  libcosim and ECOS reject connections to the
 system's own connectors (SSP 1.0 allows them: no ``endElement``): export for
 them with ``system_outputs=False`` (``--no-system-outputs``).
+
+Names OMSimulator accepts: the SSD's model, system and system connectors are identifiers
+``[A-Za-z_][A-Za-z0-9_]*`` (the model and system of ``ltv-ls-bounded`` are ``ltv_ls_bounded``, the
+scenario's name is the SSD's ``description``); a dotted system connector ``source.y`` made OMSimulator
+read the connection ``source.y -> source.y`` as one connector to itself ("Causality mismatch").
+Component connectors are the FMUs' own variable names.
 
 FMI 3.0 FMUs (``fmi_version=3``) export as SSP only: SSP 1.0 connects and binds
 scalars, so connections join whole FMI 3.0 variables and the bindings hold the
@@ -34,6 +41,7 @@ structures name FMI 2.0 scalar variables (libcosim imports FMI 1.0/2.0).
 from __future__ import annotations
 
 import math
+import re
 import zipfile
 from pathlib import Path
 from xml.dom import minidom
@@ -46,9 +54,10 @@ from .fmi3.description import read_table
 from .fmi3.elements import elements
 from .master import COUPLINGS, SimulationError
 from .native import STARTS
+from .runtime.definition import valid_identifier
 from .scenarios import Scenario, ensure_fmus, system
 
-__all__ = ["FORMATS", "export"]
+__all__ = ["FORMATS", "export", "identifier"]
 
 FORMATS = ("osp", "ssp")
 #: name of every component's inline parameter set (some importers, e.g. ecos, apply a named set only)
@@ -219,18 +228,42 @@ def _osp(exported: _Exported, scenario: Scenario, out_dir: Path, step: float) ->
     return path
 
 
+def identifier(text: str) -> str:
+    """``text`` as an SSP/OMSimulator identifier: ``ltv-ls-bounded`` -> ``ltv_ls_bounded``,
+    ``observer.theta_hat[1]`` -> ``observer_theta_hat_1``, ``A[1,2]`` -> ``A_1_2``."""
+    name = re.sub(r"[^A-Za-z0-9_]", "_", text.replace("]", ""))
+    return name if valid_identifier(name) else f"_{name}"
+
+
+def _system_outputs(exported: _Exported) -> list[tuple[str, str, str, str]]:
+    """(instance, output, type, the system connector's name) for every output of every component."""
+    outputs = [(c.name, name, kind, identifier(f"{c.name}.{name}")) for c in exported.system.components
+               for name, kind, causality in exported.ports(c.name) if causality == "output"]
+    seen = {}
+    for instance, name, _, connector in outputs:
+        other = seen.setdefault(connector, f"{instance}.{name}")
+        if other != f"{instance}.{name}":
+            raise SimulationError(f"the system outputs {other} and {instance}.{name} would both be the connector "
+                                  f"{connector!r}: rename one of the variables")
+    return outputs
+
+
 def _ssd(exported: _Exported, scenario: Scenario, step: float, stop_time: float, system_outputs: bool) -> bytes:
+    for component in exported.system.components:
+        if not valid_identifier(component.name):
+            raise SimulationError(f"instance {component.name!r}: SSP importers (OMSimulator) need an identifier "
+                                  "[A-Za-z_][A-Za-z0-9_]*")
+    name = identifier(scenario.name)
     root = Element("ssd:SystemStructureDescription", {
-        "xmlns:ssd": SSD_NS, "xmlns:ssc": SSC_NS, "xmlns:ssv": SSV_NS,
-        "version": "1.0", "name": scenario.name, "generationTool": "obsfmu"})
-    system_node = SubElement(root, "ssd:System", {"name": scenario.name, "description": scenario.description})
+        "xmlns:ssd": SSD_NS, "xmlns:ssc": SSC_NS, "xmlns:ssv": SSV_NS, "version": "1.0", "name": name,
+        "description": f"obsfmu scenario {scenario.name}", "generationTool": "obsfmu"})
+    system_node = SubElement(root, "ssd:System", {"name": name, "description": scenario.description})
     wiring = exported.fmu_connections()
     connected = {end for pair in wiring for end in pair}
-    outputs = [(c.name, name, kind) for c in exported.system.components
-               for name, kind, causality in exported.ports(c.name) if causality == "output"]
+    outputs = _system_outputs(exported)
     system_connectors = SubElement(system_node, "ssd:Connectors")  # the system's outputs: every component output
-    for instance, name, kind in outputs:
-        connector = SubElement(system_connectors, "ssd:Connector", {"name": f"{instance}.{name}", "kind": "output"})
+    for _, _, kind, connector_name in outputs:
+        connector = SubElement(system_connectors, "ssd:Connector", {"name": connector_name, "kind": "output"})
         SubElement(connector, f"ssc:{kind}")
     elements = SubElement(system_node, "ssd:Elements")
     copies = exported.copies()
@@ -255,9 +288,9 @@ def _ssd(exported: _Exported, scenario: Scenario, step: float, stop_time: float,
     for (src, out), (dst, inp) in wiring:
         SubElement(connections, "ssd:Connection", {"startElement": src, "startConnector": out,
                                                    "endElement": dst, "endConnector": inp})
-    for instance, name, _ in outputs if system_outputs else ():  # no endElement: the system's own connector
+    for instance, name, _, connector_name in outputs if system_outputs else ():  # no endElement: the system's own
         SubElement(connections, "ssd:Connection", {"startElement": instance, "startConnector": name,
-                                                   "endConnector": f"{instance}.{name}"})
+                                                   "endConnector": connector_name})
     SubElement(root, "ssd:DefaultExperiment", {"startTime": "0.0", "stopTime": repr(stop_time)})
     return _pretty(root)
 

@@ -316,7 +316,7 @@ static fmi2Status batched_step(Instance *c, const char *call, fmi2Real t, fmi2Re
  *     fmi2DoStep(t, h, fmi2True); fmi2GetReal(outputVr, output)
  * with the same checks, statuses and state machine, in one call of the bridge (one Python call instead
  * of four).  Allowed where fmi2DoStep is; `output` is written only if the step was taken. */
-__attribute__((visibility("default"))) fmi2Status obsfmuDoStepBatched(
+OBSFMU_EXPORT fmi2Status obsfmuDoStepBatched(
     fmi2Component component, fmi2Real t, fmi2Real h, const fmi2ValueReference vr[], size_t nvr,
     const fmi2Real value[], const fmi2Real slope[], const fmi2ValueReference outputVr[], size_t nOutputs,
     fmi2Real output[])
@@ -338,7 +338,7 @@ typedef struct {
 
 /* obsfmuDoStepBatched with its arrays in a plan: four arguments instead of ten, which is what a
  * caller through an FFI pays for per step (Python's ctypes: ~0.05 us per argument). */
-__attribute__((visibility("default"))) fmi2Status obsfmuDoStepPlanned(
+OBSFMU_EXPORT fmi2Status obsfmuDoStepPlanned(
     fmi2Component component, fmi2Real t, fmi2Real h, const ObsfmuStepPlan *plan)
 {
     ENTER(obsfmuDoStepPlanned, STEP_COMPLETE)
@@ -376,7 +376,7 @@ typedef struct {
  * The first status worse than fmi2Warning ends the round: it is returned and *failed names the member.
  * A round that completes moves the history on (before <- now <- live, hBefore <- h).  This is exactly
  * what the master's Python round computes, operation for operation (the tests compare bit for bit). */
-__attribute__((visibility("default"))) fmi2Status obsfmuRound(ObsfmuRound *round, fmi2Real t, fmi2Real h,
+OBSFMU_EXPORT fmi2Status obsfmuRound(ObsfmuRound *round, fmi2Real t, fmi2Real h,
                                                               size_t *failed)
 {
     if (round == NULL || failed == NULL || !(h > 0.0)) return fmi2Error;

@@ -19,8 +19,14 @@
 #ifndef OBSFMU_LOADER_COMMON_H
 #define OBSFMU_LOADER_COMMON_H
 
+#ifdef _WIN32
+#include "win32_dlfcn.h" /* dlopen & co. over LoadLibrary & co. (a win64 build: docs/portability.md) */
+#define OBSFMU_EXPORT __declspec(dllexport)
+#else
 #include <dlfcn.h>
 #include <link.h>
+#define OBSFMU_EXPORT __attribute__((visibility("default")))
+#endif
 #include <pthread.h>
 #include <stdarg.h>
 #include <stdatomic.h>
@@ -367,7 +373,7 @@ static void *load_runtime(const char *resources, const char *record, char *home,
  * process").  Found in the list of loaded objects (dl_iterate_phdr: in load order), pinned
  * (RTLD_NODELETE) so that it stays while any loader may still use it. */
 #define GUARD "obsfmu_python_start_guard_1"
-__attribute__((visibility("default"))) pthread_mutex_t obsfmu_python_start_guard_1 = PTHREAD_MUTEX_INITIALIZER;
+OBSFMU_EXPORT pthread_mutex_t obsfmu_python_start_guard_1 = PTHREAD_MUTEX_INITIALIZER;
 
 typedef struct {
     char **names;

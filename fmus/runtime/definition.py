@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["Port", "Parameter", "FmuDefinition", "element_names", "element_unit", "valid_identifier"]
+__all__ = ["Port", "Parameter", "FmuDefinition", "element_names", "element_unit", "valid_identifier", "experiment"]
 
 Unit = str | list[str] | None  #: one unit for every element, or one per element
 
@@ -34,6 +34,15 @@ _IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
 def valid_identifier(name: str) -> bool:
     return bool(_IDENTIFIER.fullmatch(name))  # not match + "$": "$" accepts a trailing newline
+
+
+def experiment(stop_time: float, step: float, start_time: float = 0.0) -> dict[str, float]:
+    """An FMU's ``DefaultExperiment`` (``FmuDefinition.default_experiment``): the run it was made for.
+
+    No ``tolerance``: the FMUs are co-simulation slaves that integrate over a step with their own
+    settings (``max_substep``, exact steps), so no solver tolerance of the importer applies to them.
+    """
+    return {"start_time": float(start_time), "stop_time": float(stop_time), "step_size": float(step)}
 
 
 def element_unit(unit: Unit, index: int) -> str | None:
@@ -121,6 +130,8 @@ class FmuDefinition:
     feedthrough: bool = False  #: outputs depend on the current inputs
     kind_module: str = ""  #: module registering ``kind`` (filled in by the builder)
     options: dict[str, Any] = field(default_factory=dict)
+    #: ``DefaultExperiment`` (:func:`experiment`): start, stop, step of the FMU's scenario or design, so that
+    #: importers run without options (None: the scenario fills in its own, ``fmus.scenarios``)
     default_experiment: dict[str, float] | None = None
     #: canHandleVariableCommunicationStepSize: False for blocks that accept one step length only
     variable_step: bool = True

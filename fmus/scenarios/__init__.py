@@ -16,7 +16,7 @@ import re
 import sys
 import zipfile
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -26,7 +26,7 @@ from fmpy import read_model_description
 from ..builder import build_fmu, is_current
 from ..fmi3 import build_folder
 from ..fmi3.elements import scalar_variables
-from ..runtime.definition import FmuDefinition
+from ..runtime.definition import FmuDefinition, experiment
 from ..master import Component, Connection, Recorder, Session, SimulationError, System
 from ..result import Result, RunInfo
 
@@ -126,8 +126,15 @@ def is_added(key: str) -> bool:
 
 
 def _items(scenario: Scenario):
+    """The scenario's definitions; one without a ``default_experiment`` gets the scenario's own run.
+
+    FMUs that several scenarios share (``ltv_common``) declare theirs in their definitions: one
+    definition per FMU, whichever scenario builds it.
+    """
     for item in scenario.definitions():
         definition, extra_modules = item if isinstance(item, tuple) else (item, ())
+        if definition.default_experiment is None:
+            definition = replace(definition, default_experiment=experiment(scenario.stop_time, scenario.step))
         yield definition, tuple(extra_modules)
 
 

@@ -62,7 +62,7 @@ def _design_definitions(path: Path) -> tuple[list, list[str]]:
     notes = [f"observer: N = {matrix_text(design.N)}; eig(A - N C) = [{poles_text(design.observer_poles)}]"]
     if design.K is not None:
         notes.append(f"controller: K = {matrix_text(design.K)}; eig(A - B K) = [{poles_text(design.controller_poles)}]")
-    return design.definitions(), notes
+    return design.definitions(design.experiment()), notes
 
 
 def definitions_of(path: Path | str) -> list:

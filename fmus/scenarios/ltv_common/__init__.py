@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ...runtime.definition import experiment
 from ...runtime.kinds.ltv import ltv_observer_definition, ltv_plant_definition
 from ...runtime.kinds.signals import source_definition
 from ...master import Connection
@@ -35,8 +36,14 @@ CASES = {"ltv-ls": "paper", "ltv-ls-bounded": "bounded"}
 NAMES = ["-x0[1]", "-x0[2]", "k[1]", "k[2]", "b[1]", "b[2]", "m[1]", "m[2]"]  #: Theta's entries
 
 
+#: the shared FMUs' DefaultExperiment: the paper's case (scenario ``ltv-ls``, 0..15 s at 1e-3 s), one definition
+#: per FMU whichever scenario builds it (``ltv-ls-bounded`` runs them 0..20 s at 1e-2 s with its start values)
+PAPER_RUN = (15.0, 1e-3)
+PAPER_EXPERIMENT = experiment(*PAPER_RUN)
+
+
 def definitions():
-    return [
+    found = [
         source_definition("ltv_ls_source", sines=1, amplitude=[1.0], omega=[1.0],
                           description="u(t) = sin t (paper 001)"),
         ltv_plant_definition("ltv_ls_plant", "plants.ltv:A_paper", C, "plants.ltv:f_sin", **PAPER,
@@ -44,6 +51,9 @@ def definitions():
         ltv_observer_definition("ltv_ls_observer", "plants.ltv:A_paper", C, "plants.ltv:L_paper",
                                 "plants.ltv:f_sin"),
     ]
+    for definition in found:
+        definition.default_experiment = dict(PAPER_EXPERIMENT)
+    return found
 
 
 def plant_start(unknowns: dict) -> dict[str, float]:

@@ -11,7 +11,7 @@ measurements behind these defaults: ``docs/paper001.md``, section 3.
 
 from __future__ import annotations
 
-from ..ltv_common import PAPER, scenario
+from ..ltv_common import PAPER, PAPER_RUN, scenario
 
 #: cubic inputs, RK4 sub-steps over which y moves by at most 0.1 in the (unstable) plant and 0.4 in
 #: the observer's (stable) filters, which resolve the fast part of y (``f_correction``)
@@ -35,5 +35,5 @@ CLAIM = (
     "12.2 s.")
 
 SCENARIO = scenario("ltv-ls", "paper 001: adaptive observer (LS with forgetting) of the paper's unstable LTV plant, "
-                    "0..15 s", PAPER, 15.0, 1e-3, CLAIM, STEPPING, ramp=6, plant=PLANT, observer=OBSERVER,
+                    "0..15 s", PAPER, *PAPER_RUN, CLAIM, STEPPING, ramp=6, plant=PLANT, observer=OBSERVER,
                     adaptive_floor=ADAPTIVE_FLOOR)

@@ -10,6 +10,7 @@ the container steps its FMUs in parallel from held inputs (Jacobi), and the expo
 what our Jacobi master's linear coupling does with input derivatives.
 """
 
+import re
 import shutil
 import subprocess
 import sys
@@ -21,7 +22,7 @@ import numpy as np
 import pytest
 from fmpy import read_model_description, simulate_fmu
 
-from fmus.export import export
+from fmus.export import export, identifier
 from fmus.master import Component, Session, SimulationError, System
 from fmus.scenarios import get, run
 
@@ -50,12 +51,12 @@ def test_fmu_container_of_the_ssp_reproduces_the_jacobi_master(build_dir, tmp_pa
     theirs = simulate_fmu(str(container), stop_time=STOP, step_size=STEP, output_interval=STEP)
     assert np.array_equal(theirs["time"], ours.time)
     # the configuration survived: y(0) = x0[1] = 2 of ltv-ls-bounded, not the FMU's default -3
-    assert theirs["plant.y"][0] == 2.0 == ours["plant.y"][0]
+    assert theirs["plant_y"][0] == 2.0 == ours["plant.y"][0]
     names = ["plant.y"] + [f"observer.theta_hat[{j}]" for j in range(1, 9)] + ["observer.x_hat[1]", "observer.x_hat[2]"]
-    if fmi_version == 2:  # the system's outputs are the container's, one per element ...
-        mine = np.column_stack([theirs[name] for name in names])
+    if fmi_version == 2:  # the system's outputs are the container's, one per element (identifiers) ...
+        mine = np.column_stack([theirs[identifier(name)] for name in names])
     else:                 # ... or one per FMI 3.0 array
-        mine = np.column_stack([theirs["plant.y"], theirs["observer.theta_hat"], theirs["observer.x_hat"]])
+        mine = np.column_stack([theirs["plant_y"], theirs["observer_theta_hat"], theirs["observer_x_hat"]])
     deviation = np.max(np.abs(mine - np.column_stack([ours[name] for name in names])))
     assert deviation < 1e-9, deviation  # measured 4.2e-14 (FMI 2.0 and 3.0)
 
@@ -71,12 +72,46 @@ def test_the_ssd_declares_every_output_on_the_system(build_dir, tmp_path):
     outputs = {f"{instance}.{v.name}" for instance, model, _ in get("ship").components
                for v in read_model_description(str(build_dir / f"{model}.fmu")).modelVariables
                if v.causality == "output"}
-    assert set(connectors) == outputs and set(connectors.values()) == {"output"}
+    assert set(connectors) == {identifier(name) for name in outputs} and len(connectors) == len(outputs)
+    assert set(connectors.values()) == {"output"} and "observer_x_hat_1" in connectors
     to_system = {(c.get("startElement"), c.get("startConnector"), c.get("endConnector"))
                  for c in system.iter(f"{SSD}Connection") if c.get("endElement") is None}
-    assert {f"{e}.{n}" for e, n, _ in to_system} == outputs and all(f"{e}.{n}" == end for e, n, end in to_system)
+    assert {f"{e}.{n}" for e, n, _ in to_system} == outputs
+    assert all(identifier(f"{e}.{n}") == end for e, n, end in to_system)
     without = ssd(export(get("ship"), "ssp", tmp_path / "lite", build_dir, system_outputs=False))
     assert all(c.get("endElement") for c in without.iter(f"{SSD}Connection"))  # for libcosim and ECOS
+
+
+IDENTIFIER = r"[A-Za-z_][A-Za-z0-9_]*"
+
+
+@pytest.mark.parametrize("fmi_version", [2, 3])
+@pytest.mark.parametrize("name", ["ltv-ls-bounded", "ship"])
+def test_the_ssd_names_are_identifiers_omsimulator_accepts(build_dir, tmp_path, name, fmi_version):
+    """OMSimulator 3.0 (not installable here) refused the export: '"ltv-ls-bounded" is not a valid ident' (the model and system names)
+    and 'Causality mismatch in connection: source.y -> source.y' (a system connector named ``source.y``).  Now the
+    model, system, component and system-connector names are identifiers, the scenario's name is the description,
+    component connectors are the FMUs' own variable names, and no connection joins a name to itself."""
+    path = export(get(name), "ssp", tmp_path, build_dir, fmi_version=fmi_version)
+    root = ssd(path)
+    system = root.find(f"{SSD}System")
+    assert root.get("description") == f"obsfmu scenario {name}"
+    components = system.findall(f"{SSD}Elements/{SSD}Component")
+    names = [root.get("name"), system.get("name")] + [c.get("name") for c in components] \
+        + [c.get("name") for c in system.find(f"{SSD}Connectors")]
+    assert all(re.fullmatch(IDENTIFIER, n) for n in names), [n for n in names if not re.fullmatch(IDENTIFIER, n)]
+    for component in components:
+        with zipfile.ZipFile(path) as package:
+            with package.open(component.get("source")) as fmu, zipfile.ZipFile(fmu) as inner:
+                variables = {v.get("name") for v in ElementTree.fromstring(inner.read("modelDescription.xml")).iter()
+                             if v.tag in ("ScalarVariable", "Float64", "Int32", "Boolean")}
+        assert {c.get("name") for c in component.find(f"{SSD}Connectors")} <= variables
+    ends = [(f"{c.get('startElement')}.{c.get('startConnector')}",
+             f"{c.get('endElement')}.{c.get('endConnector')}" if c.get("endElement") else c.get("endConnector"))
+            for c in system.iter(f"{SSD}Connection")]
+    assert ends and all(start != end for start, end in ends)
+    system_connectors = {c.get("name") for c in system.find(f"{SSD}Connectors")}
+    assert all("." not in end for start, end in ends if end in system_connectors) and system_connectors
 
 
 @pytest.mark.parametrize("fmi_version", [2, 3])

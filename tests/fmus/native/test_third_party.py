@@ -13,7 +13,10 @@ the packages).  Then:
   crashed the host; now that call is refused (the run ends with fmusim's error status, the state file is
   written).  The same fmusim with that one call fixed saves a state at t1 and restores it in a second run
   from t1, which continues like one run through (to 1e-13 relative: its grid starts at t1);
-* a simple FMU agrees with fmpy (the project's master is built on it) to 1e-12 relative.
+* a simple FMU agrees with fmpy (the project's master is built on it) to 1e-12 relative;
+* without step and stop options both tools run an FMU's own ``DefaultExperiment`` (fmuCheck: its start and
+  stop only) -- the GPEBO FMUs, which refuse any step but 1 s, included.
+The scenarios replayed FMU by FMU in fmusim: ``test_fmusim_replay.py``.
 """
 
 from __future__ import annotations
@@ -127,6 +130,43 @@ def test_every_fmi2_fmu_passes_the_compliance_checker(fmucheck, every_fmu, tmp_p
             failures[model] = report[-1500:]
     assert not failures, failures
     assert len(every_fmu) >= 17
+
+
+GPEBO = ("gpebo_input", "gpebo_plant", "gpebo_observer")  #: FMUs that refuse any step but their sample time
+
+
+def gpebo_paths(fixture, request) -> tuple[float, float, dict]:
+    """The GPEBO FMUs and their scenario's stop time and step (what their DefaultExperiment declares)."""
+    from fmus.scenarios import get
+    scenario, fmus = get("discrete-gpebo"), request.getfixturevalue(fixture)
+    return scenario.stop_time, scenario.step, {model: fmus[model][1] for model in GPEBO}
+
+
+def test_fmucheck_takes_the_stop_time_of_the_default_experiment(fmucheck, request, tmp_path):
+    """fmuCheck 2.0.3 reads startTime and stopTime of the DefaultExperiment, not its stepSize: its step is the stop
+    time over ``-n`` points (500 by default, ``prepare_time_step_info`` in src/Common/fmuChecker.c), so the GPEBO
+    FMUs (1 s steps only) run with ``-n`` alone and no ``-h``/``-s``."""
+    stop, step, paths = gpebo_paths("every_fmu", request)
+    for model, path in paths.items():
+        completed = run_tool([fmucheck, "-n", round(stop / step), "-o", tmp_path / f"{model}.csv", path], tmp_path)
+        report = completed.stdout + completed.stderr
+        assert completed.returncode == 0 and "\t0 Error(s)" in report, report[-2000:]
+        times = read_csv(tmp_path / f"{model}.csv")[1][:, 0]
+        np.testing.assert_allclose(times, np.arange(round(stop / step) + 1) * step, rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("fixture", ["every_fmu", "every_fmu3"])
+def test_fmusim_without_options_runs_the_default_experiment(fmusim, request, fixture, tmp_path):
+    """No --start-time, --stop-time, --output-interval: fmusim runs 0..40 s at 1 s, which the GPEBO FMUs accept
+    (before they declared no DefaultExperiment: fmusim ran them at 1/500 of 1 s and they refused)."""
+    stop, step, paths = gpebo_paths(fixture, request)
+    for model, path in paths.items():
+        out = tmp_path / f"{model}.csv"
+        completed = run_tool([fmusim, "--interface-type", "cs", "--output-file", out, path], tmp_path)
+        assert completed.returncode == 0, (model, (completed.stdout + completed.stderr)[-2000:])
+        rows = read_csv(out)[1]
+        np.testing.assert_allclose(rows[:, 0], np.arange(round(stop / step) + 1) * step, rtol=0, atol=1e-9)
+        assert np.all(np.isfinite(rows))
 
 
 def fmusim_run(fmusim, path, step, work, *options, stop=None):

@@ -1,0 +1,50 @@
+"""Every FMU declares a ``DefaultExperiment`` (issue 28.6): the start, stop and step of its scenario or design,
+in its FMI 2.0 and FMI 3.0 modelDescription, so that importers run it without options.
+
+The FMUs ``ltv-ls`` and ``ltv-ls-bounded`` share (one definition each) declare the paper's case, ``ltv-ls``.
+"""
+
+import pytest
+from fmpy import read_model_description
+
+from fmus.scenarios import SCENARIOS
+
+SHARED = {"ltv_ls_source", "ltv_ls_plant", "ltv_ls_observer"}
+
+
+def declared(path) -> tuple[float, float, float, object]:
+    experiment = read_model_description(str(path)).defaultExperiment
+    assert experiment is not None, path
+    return (*(float(value) for value in (experiment.startTime, experiment.stopTime, experiment.stepSize)),
+            experiment.tolerance)
+
+
+@pytest.mark.parametrize("fixture", ["every_fmu", "every_fmu3"])
+def test_every_fmu_declares_the_run_of_its_scenario(request, fixture):
+    fmus = request.getfixturevalue(fixture)
+    by_model = {model: scenario for scenario in SCENARIOS.values() for _, model, _ in scenario.components
+                if scenario.name != "ltv-ls-bounded"}
+    assert set(by_model) == set(fmus) and len(fmus) >= 17
+    for model, (_, path) in fmus.items():
+        scenario = by_model[model]
+        assert declared(path) == (0.0, scenario.stop_time, scenario.step, None), model
+    assert {m for m, s in by_model.items() if s.name == "ltv-ls"} == SHARED
+
+
+def test_the_shared_fmus_declare_the_paper_case_not_the_bounded_one(every_fmu):
+    bounded = SCENARIOS["ltv-ls-bounded"]
+    for model in SHARED:
+        start, stop, step, _ = declared(every_fmu[model][1])
+        assert (stop, step) == (15.0, 1e-3) != (bounded.stop_time, bounded.step)
+
+
+def test_a_design_built_alone_declares_its_own_run(tmp_path):
+    """``obsfmu build --config``: 10 time constants of the slowest designed pole, a hundredth of the fastest."""
+    from fmus.cli.main import main
+    from fmus.scenarios.ship import CONFIG
+
+    assert main(["build", "--config", str(CONFIG), "--out", str(tmp_path)]) == 0
+    built = sorted(tmp_path.glob("ship_*.fmu"))
+    assert len(built) == 3
+    for path in built:  # poles -40 (observer), -20 (controller): 10 / 20 s, 0.01 / 40 s to one digit
+        assert declared(path) == (0.0, 0.5, 3e-4, None), path.name
