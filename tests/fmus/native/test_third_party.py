@@ -197,10 +197,12 @@ def test_fmusim_0_0_39_freeing_a_state_with_the_state_itself_no_longer_crashes(f
 
 
 @pytest.mark.parametrize("version", [2, 3])
-def test_a_state_saved_by_fmusim_restores_the_run(fmusim_fixed, build_dir, tmp_path, version):
-    """0 -> t1 saving the state, then t1 -> t2 from that state file = 0 -> t2 in one run, at every point."""
+@pytest.mark.parametrize("scenario, model", [("ship", "ship_plant"), ("ltv-ls", "ltv_ls_plant")])
+def test_a_state_saved_by_fmusim_restores_the_run(fmusim_fixed, build_dir, tmp_path, version, scenario, model):
+    """0 -> t1 saving the state, then t1 -> t2 from that state file = 0 -> t2 in one run, at every point
+    (the LTI ship plant, and paper 001's nonlinear LTV plant with its RK4 sub-steps)."""
     from fmus.scenarios import ensure_fmus, get
-    path = ensure_fmus(get("ship"), build_dir, fmi_version=version)["ship_plant"]
+    path = ensure_fmus(get(scenario), build_dir, fmi_version=version)[model]
     step, half = 1e-3, POINTS // 2 * 1e-3
     state = tmp_path / "state.bin"
     (whole := tmp_path / "whole").mkdir()
