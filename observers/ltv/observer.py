@@ -111,20 +111,33 @@ class LTVAdaptiveObserver(Block):
         interpolates ``y - C^T m_hat int f(y)``.  For outputs that ``f(y)`` makes oscillate
         faster than the samples (paper case: 1e-3 s steps instead of 1e-4 s); False: the
         polynomial through the samples of ``y``.
+    converged_tolerance : float
+        ``converged`` is 1 once the guaranteed bound on ``|Theta_hat - Theta|_2`` is at most this.
+    theta_bound : float
+        A-priori bound on every entry of ``Theta = [-x(0); k; b; m]``: ``|Theta_i| <= theta_bound``.
+    regression_error_bound : float
+        A-priori bound on the error of regression (7), ``|z - Psi Theta|`` (noise, model error);
+        0: the regression is exact.
 
     Notes
     -----
     Ports: inputs ``u``, ``y`` (scalars); outputs ``x_hat`` (n), ``theta_hat`` (4 n, the whole
     ``Theta_hat``), its parts ``k_hat``, ``b_hat``, ``m_hat``, ``x0_hat = -theta_hat[:n]``, and
-    ``F_max``, the largest eigenvalue of the gain ``F`` (bounded by ``M``; watch it under noise).
+    ``F_max``, the largest eigenvalue of the gain ``F`` (bounded by ``M``; watch it under noise);
+    then the diagnostics contract (docs/estimation.md, "Diagnostics"): ``excitation =
+    lambda_min(P) / gamma`` (``P = F^-1``) and ``converged`` (1 once
+    :meth:`~observers.estimation.LeastSquaresForgetting.error_bound` is at most
+    ``converged_tolerance``, else 0).
     """
 
-    not_state = ("A", "L", "f", "C", "n", "max_substep", "max_dy", "substep_budget", "_forcing", "f_correction")
+    not_state = ("A", "L", "f", "C", "n", "max_substep", "max_dy", "substep_budget", "_forcing", "f_correction",
+                 "converged_tolerance", "regression_error_bound", "initial_error")
     state_optional = {"_memo_key": None, "_memo": None}
 
     def __init__(self, A, C, L, f, gamma=1000.0, beta=1.0, f0=0.1, M=1e12, x_hat0=None, k_hat0=None,
                  b_hat0=None, m_hat0=None, max_substep=1e-3, max_dy=0.2, input_degree=2,
-                 substep_budget=DEFAULT_SUBSTEP_BUDGET, f_correction=False):
+                 substep_budget=DEFAULT_SUBSTEP_BUDGET, f_correction=False, converged_tolerance=1e-3,
+                 theta_bound=100.0, regression_error_bound=0.0):
         self.C = as_vector("C", C)
         if not np.any(self.C):
             raise ParameterError("C: the output vector is zero; y = C^T x would measure nothing")
@@ -141,6 +154,10 @@ class LTVAdaptiveObserver(Block):
                                    ("m_hat0", m_hat0))]
         theta0 = np.concatenate([-initial[0]] + initial[1:])
         self.estimator = LeastSquaresForgetting(4 * n, gamma, beta, f0, M, theta0)
+        self.converged_tolerance = require_positive("converged_tolerance", converged_tolerance)
+        self.regression_error_bound = require_positive("regression_error_bound", regression_error_bound, allow_zero=True)
+        # |Theta_hat(0) - Theta|_2 <= | |Theta_hat(0)| + theta_bound |_2
+        self.initial_error = float(np.linalg.norm(np.abs(theta0) + require_positive("theta_bound", theta_bound)))
         # S = [xi, W] = [xi, -Phi, eta, zeta, rho], n x (1 + 4 n)
         self.S = np.zeros((n, 1 + 4 * n))
         self.S[:, 1:1 + n] = -np.eye(n)
@@ -155,7 +172,7 @@ class LTVAdaptiveObserver(Block):
         self._memo_key, self._memo = None, None
         self.input_sizes = {"u": 1, "y": 1}
         self.output_sizes = {"x_hat": n, "theta_hat": 4 * n, "k_hat": n, "b_hat": n, "m_hat": n,
-                             "x0_hat": n, "F_max": 1}
+                             "x0_hat": n, "F_max": 1, "excitation": 1, "converged": 1}
 
     # ------------------------------------------------------------------ equations
     def _evaluate(self, t: float, y: float, u: float):
@@ -178,10 +195,12 @@ class LTVAdaptiveObserver(Block):
     # ------------------------------------------------------------------ Block interface
     def outputs(self, t: float, inputs: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
         n, theta = self.n, self.estimator.theta_hat.copy()
-        F_max = self.estimator.F_max
+        estimator = self.estimator
+        converged = estimator.error_bound(self.initial_error, self.regression_error_bound) <= self.converged_tolerance
         return {"x_hat": self.state_estimate(), "theta_hat": theta, "k_hat": theta[n:2 * n],
                 "b_hat": theta[2 * n:3 * n], "m_hat": theta[3 * n:], "x0_hat": -theta[:n],
-                "F_max": np.array([F_max])}
+                "F_max": np.array([estimator.F_max]), "excitation": np.array([estimator.lambda_min / estimator.gamma]),
+                "converged": np.array([float(converged)])}
 
     def advance(self, t: float, h: float, inputs: Mapping[str, Segment]) -> None:
         polynomials, history = self.inputs.step(t, h, inputs)

@@ -21,6 +21,7 @@ from plants.signals import SampledNoise
 from ..callables import reference, resolve
 from ..definition import FmuDefinition, Parameter, Port
 from . import register
+from .diagnostics import LS_CONTRACT, contract_parameters, contract_ports, contract_values
 
 __all__ = ["ltv_plant_definition", "ltv_observer_definition"]
 
@@ -48,7 +49,7 @@ def _observer(p, options):
                                float(p["gamma"]), float(p["beta"]), float(p["f0"]), float(p["M"]),
                                p["x_hat0"], p["k_hat0"], p["b_hat0"], p["m_hat0"],
                                float(p["max_substep"]), float(p["max_dy"]), _degree(p), _budget(p),
-                               _flag(p, "f_correction"))
+                               _flag(p, "f_correction"), *contract_values(p, LS_CONTRACT))
 
 
 def _flag(p, name: str) -> bool:
@@ -123,7 +124,8 @@ def ltv_plant_definition(model_name: str, A, C, f, k, b, m, x0, *, noise_std=0.0
 
 def ltv_observer_definition(model_name: str, A, C, L, f, *, gamma=1000.0, beta=1.0, f0=0.1, M=1e12,
                             x_hat0=None, k_hat0=None, b_hat0=None, m_hat0=None, max_substep=1e-3,
-                            max_dy=0.2, input_degree=2, f_correction=0, description: str = "") -> FmuDefinition:
+                            max_dy=0.2, input_degree=2, f_correction=0, converged_tolerance=1e-3, theta_bound=100.0,
+                            regression_error_bound=0.0, description: str = "") -> FmuDefinition:
     """Adaptive observer FMU of paper 001 (filters (2)-(6), regression (7), LS with forgetting, (10)).
 
     ``A``, ``L``, ``f`` are module-level functions or ``"module:function"`` references; ``C`` is
@@ -145,7 +147,9 @@ def ltv_observer_definition(model_name: str, A, C, L, f, *, gamma=1000.0, beta=1
       + _stepping(max_substep, max_dy, input_degree) \
       + [_scalar("f_correction", f_correction, "1: inside a step y follows the polynomial of y - C^T m_hat "
                  "int f(y) plus that fast part (for outputs f(y) makes oscillate between samples); "
-                 "0: the polynomial of y")]
+                 "0: the polynomial of y")] \
+      + contract_parameters(LS_CONTRACT, converged_tolerance=converged_tolerance, theta_bound=theta_bound,
+                            regression_error_bound=regression_error_bound)
     definition = FmuDefinition(
         model_name=model_name, kind=OBSERVER_KIND, options=options,
         description=description or (f"paper 001 adaptive observer: filters (2)-(6), regression (7), least squares "
@@ -157,7 +161,8 @@ def ltv_observer_definition(model_name: str, A, C, L, f, *, gamma=1000.0, beta=1
                  Port("theta_hat", 4 * n, "estimate of Theta = [-x(0); k; b; m]"),
                  Port("k_hat", n, "estimate of k"), Port("b_hat", n, "estimate of b"),
                  Port("m_hat", n, "estimate of m"), Port("x0_hat", n, "estimate of x(0)"),
-                 Port("F_max", 1, "largest eigenvalue of the estimator gain F (bounded by M)", scalar=True)],
+                 Port("F_max", 1, "largest eigenvalue of the estimator gain F (bounded by M)", scalar=True)]
+                + contract_ports(LS_CONTRACT),
     )
     _check(definition)
     return definition
