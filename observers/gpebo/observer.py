@@ -32,7 +32,9 @@ Diagnostics contract (docs/estimation.md, "Diagnostics").  With ``|sigma_i| <= t
 and ``|eta_i| <= theta_bound`` a priori, ``|sigma_hat_i - sigma_i| <= nu_gamma (|sigma_hat_i(0)|
 + theta_bound)`` and ``|eta_hat_i - eta_i| <= nu_eta (|eta_hat_i(t_r)| + theta_bound)`` (``t_r``
 the last restart); through ``gamma = [sigma_1, sigma_1 sigma_4]`` the first bounds
-``|gamma_hat - gamma|``.  ``converged = 1`` when both are at most ``converged_tolerance``;
+``|gamma_hat - gamma|``.  ``converged = 1`` when both are at most ``converged_tolerance`` and the
+filters run with a ``Gamma`` within that tolerance of the true one (the eta regression is exact
+only then: the assumption is that an error below the tolerance there leaves eta's bound valid);
 ``excitation = min(|Delta_sigma|, |Delta_eta|)`` at the last sample.
 """
 
@@ -148,8 +150,12 @@ class GpeboObserver(Block):
 
     @property
     def converged(self) -> bool:
-        tolerance = self.converged_tolerance
-        return self.gamma_error_bound() <= tolerance and self.eta_error_bound() <= tolerance
+        """Both bounds within the tolerance, and the filters run with a ``Gamma`` within it of the true one
+        (``|gamma_filters - gamma| <= |gamma_filters - gamma_hat| + bound``): the eta regression is
+        exact only for the true ``Gamma``."""
+        tolerance, bound = self.converged_tolerance, self.gamma_error_bound()
+        gap = float(np.max(np.abs(self.filter_gammas - self.gamma_hat))) + bound
+        return bound <= tolerance and gap <= tolerance and self.eta_error_bound() <= tolerance
 
     def _moved(self, gammas: np.ndarray) -> bool:
         scale = max(1.0, float(np.max(np.abs(gammas))))
