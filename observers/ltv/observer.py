@@ -322,7 +322,8 @@ def _quadrature_weights(count: int, h: float, beta: float) -> np.ndarray:
 
 
 def _require_stable_A0(A, L, C, times=np.linspace(0.0, 10.0, 21), tolerance=1e-9) -> None:
-    """Refuse an ``L`` for which ``A0(t) = A(t) - L(t) C^T`` has an unstable frozen eigenvalue.
+    """Refuse an ``L`` for which ``A0(t) = A(t) - L(t) C^T`` has an unstable frozen eigenvalue, and a
+    ``C`` with which a frozen ``(A0(t), C^T)`` is not observable.
 
     Frozen-time eigenvalues do not prove uniform stability of an LTV system; this catches
     wrong signs and dimensions early.  A0 growing at run time is caught in ``advance``.
@@ -331,6 +332,11 @@ def _require_stable_A0(A, L, C, times=np.linspace(0.0, 10.0, 21), tolerance=1e-9
         A0 = np.asarray(A(t), dtype=float) - np.outer(np.asarray(L(t), dtype=float), C)
         if not np.all(np.isfinite(A0)):
             raise ParameterError(f"L: A0(t) = A(t) - L(t) C^T is not finite at t = {t:g}")
+        observability = np.array([C @ np.linalg.matrix_power(A0, i) for i in range(C.size)])
+        if np.linalg.matrix_rank(observability) < C.size:
+            raise ParameterError(f"C: (A0(t), C^T) is not observable at t = {t:g} (the rank of "
+                                 f"[C^T; C^T A0; ...] is {np.linalg.matrix_rank(observability)} < n = {C.size}); "
+                                 f"the regression (7) cannot identify x(0)")
         eigenvalues = np.linalg.eigvals(A0)
         worst = eigenvalues[np.argmax(eigenvalues.real)]
         if worst.real > tolerance * max(1.0, np.abs(A0).max()):

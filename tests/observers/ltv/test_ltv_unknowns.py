@@ -66,3 +66,22 @@ def test_fewer_unknowns_converge_sooner():
 def test_mistakes_name_the_field(options, field):
     with pytest.raises(ParameterError, match=f"^{field}"):
         LTVAdaptiveObserver(A_paper, C, L_paper, f_sin, **options)
+
+
+def test_an_unobservable_pair_is_refused_naming_C():
+    with pytest.raises(ParameterError, match="^C: .*not observable"):
+        LTVAdaptiveObserver(lambda t: np.array([[-1.0, 0.0], [0.0, -2.0]]), C, lambda t: np.zeros(2), f_sin)
+
+
+def test_the_kind_takes_the_unknowns_as_an_option_and_the_known_values_as_parameters():
+    from fmus.runtime.kinds.ltv import ltv_observer_definition
+    definition = ltv_observer_definition("o", A_paper, C, L_paper, f_sin, unknowns=("k", "m"),
+                                         known={"b": CASE["b"]})
+    names = [p.name for p in definition.parameters]
+    assert definition.options["unknowns"] == "k,m" and "b" in names and "b_hat0" not in names
+    assert {o.name: o.size for o in definition.outputs}["theta_hat"] == 6
+    with pytest.raises(ParameterError, match="^b: "):
+        ltv_observer_definition("o", A_paper, C, L_paper, f_sin, unknowns=("k", "m"))
+    with pytest.raises(ParameterError, match="^b_hat0: "):
+        ltv_observer_definition("o", A_paper, C, L_paper, f_sin, unknowns=("k", "m"), known={"b": CASE["b"]},
+                                b_hat0=[0.0, 0.0])
