@@ -28,6 +28,18 @@ round-off does not accumulate in weakly excited directions).  Once
 ``lambda_max(F) > M`` the law freezes ``F`` for good (``F' = 0`` keeps it
 above ``M``) and ``Theta_hat' = gamma F Psi^T (z - Psi Theta_hat)`` is advanced
 exactly with :func:`~observers.estimation.gradient.gradient_flow_step`.
+
+Error certificate (:meth:`LeastSquaresForgetting.error_bound`).  For an exact regression
+``Y = Phi Theta`` the step above gives ``P+ (Theta_hat+ - Theta) = e^{-beta dt} P (Theta_hat - Theta)``,
+so ``P(t) Theta_tilde(t) = e^{-beta t} f0 Theta_tilde(0)`` to round-off, and with a regression
+error ``|Y - Phi Theta|_2 <= eps`` on every update (Cauchy-Schwarz on the weighted sum, whose
+weights add up to ``gamma (1 - e^{-beta t}) / beta``)
+
+.. math:: |\tilde\Theta(t)|_2 \le \frac{f_0 e^{-\beta t}}{\lambda_{\min}(P)} |\tilde\Theta(0)|_2
+          + \varepsilon \sqrt{\frac{\gamma (1 - e^{-\beta t})}{\beta \lambda_{\min}(P)}} .
+
+Once ``F`` is frozen, ``V = Theta_tilde^T P_f Theta_tilde`` does not grow (``eps = 0``), so the
+bound at the freeze times ``sqrt(cond P_f)`` holds from then on (``inf`` when ``eps > 0``).
 """
 
 from __future__ import annotations
@@ -95,7 +107,22 @@ class LeastSquaresForgetting:
         self.theta_hat = initial_estimate(theta0, self.p)
         self.P = self.f0 * np.eye(self.p)
         self.lambda_min = self.f0        # smallest eigenvalue of P, kept with P (one eigvalsh per step)
+        self.decay = 1.0                 # e^{-beta t} since the reset, until F is frozen
         self._frozen_F = None
+
+    def error_bound(self, initial_error: float, regression_error: float = 0.0) -> float:
+        """Guaranteed bound on ``|theta_hat - theta|_2`` (module docstring), given
+        ``|theta_hat(0) - theta|_2 <= initial_error`` and ``|Y - Phi theta|_2 <= regression_error``
+        on every update; ``inf`` if ``F`` is frozen and ``regression_error > 0``."""
+        bound = self.f0 * self.decay * initial_error / self.lambda_min
+        if regression_error > 0.0:
+            if self.frozen:
+                return math.inf
+            bound += regression_error * math.sqrt(self.gamma * (1.0 - self.decay) / (self.beta * self.lambda_min))
+        if self.frozen:
+            eigenvalues = np.linalg.eigvalsh(self.P)
+            bound *= math.sqrt(eigenvalues[-1] / eigenvalues[0])
+        return bound
 
     @property
     def F_max(self) -> float:
@@ -122,10 +149,12 @@ class LeastSquaresForgetting:
         if frozen_F is None:
             theta, P = self._information_step(Y, Phi, dt)
             lambda_min = float(np.linalg.eigvalsh(P)[0])
+            decay = self.decay * math.exp(-self.beta * dt)
         else:
             theta, P = gradient_flow_step(self.theta_hat, Y, Phi, self.gamma, dt, F=frozen_F), self.P
-            lambda_min = self.lambda_min
+            lambda_min, decay = self.lambda_min, self.decay
         self.theta_hat, self.P, self.lambda_min, self._frozen_F = theta, P, lambda_min, frozen_F
+        self.decay = decay
         return self.theta_hat
 
     def _gain_exceeds_bound(self) -> bool:

@@ -27,6 +27,15 @@ since the last restart (``nu_eta``).  ``excited = 1`` when both are below
 ``excitation_tol``: the estimates are then determined by the data, whatever
 the initial guesses were.  ``excited = 0`` says the regressions have not
 been exciting (e.g. a constant input): the estimates are not to be trusted.
+
+Diagnostics contract (docs/estimation.md, "Diagnostics").  With ``|sigma_i| <= theta_bound``
+and ``|eta_i| <= theta_bound`` a priori, ``|sigma_hat_i - sigma_i| <= nu_gamma (|sigma_hat_i(0)|
++ theta_bound)`` and ``|eta_hat_i - eta_i| <= nu_eta (|eta_hat_i(t_r)| + theta_bound)`` (``t_r``
+the last restart); through ``gamma = [sigma_1, sigma_1 sigma_4]`` the first bounds
+``|gamma_hat - gamma|``.  ``converged = 1`` when both are at most ``converged_tolerance`` and the
+filters run with a ``Gamma`` within that tolerance of the true one (the eta regression is exact
+only then: the assumption is that an error below the tolerance there leaves eta's bound valid);
+``excitation = min(|Delta_sigma|, |Delta_eta|)`` at the last sample.
 """
 
 from __future__ import annotations
@@ -75,11 +84,12 @@ class GpeboObserver(Block):
     ``nu_gamma``, ``nu_eta``, ``restart_time``.
     """
 
-    not_state = ("model", "regression", "Ts", "k_gamma", "k_eta", "restart_tol", "excitation_tol")
+    not_state = ("model", "regression", "Ts", "k_gamma", "k_eta", "restart_tol", "excitation_tol",
+                 "converged_tolerance", "theta_bound", "sigma_error0")
 
     def __init__(self, model: GeneratorModel, Ts: float, k_gamma: float = 1e-8, k_eta: float = 1e-8,
                  gamma_hat0=(-0.5, 0.5), eta_hat0=None, x_hat0=None, restart_tol: float = 1e-11,
-                 excitation_tol: float = 1e-9):
+                 excitation_tol: float = 1e-9, converged_tolerance: float = 1e-6, theta_bound: float = 100.0):
         self.model = model
         self.regression = ExampleRegression(model)
         self.Ts = require_positive("Ts", Ts)
@@ -87,6 +97,8 @@ class GpeboObserver(Block):
         self.k_eta = require_positive("k_eta", k_eta)
         self.restart_tol = require_positive("restart_tol", restart_tol)
         self.excitation_tol = require_positive("excitation_tol", excitation_tol)
+        self.converged_tolerance = require_positive("converged_tolerance", converged_tolerance)
+        self.theta_bound = require_positive("theta_bound", theta_bound)
         gamma_hat0 = as_vector("gamma_hat0", gamma_hat0, 2)
         if gamma_hat0[0] == 0:
             raise ParameterError("gamma_hat0: gamma_beta (entry 1) must be nonzero; the regression is "
@@ -99,6 +111,8 @@ class GpeboObserver(Block):
         self.gamma_drem = DiscreteDREM(DelayExtension(range(1, p)), self.k_gamma,
                                        theta0=self.regression.sigma(*gamma_hat0))
         self.eta_drem = DiscreteDREM(DelayExtension(range(1, N)), self.k_eta, theta0=eta_hat0)
+        self.sigma_error0 = np.abs(self.gamma_drem.theta_hat) + self.theta_bound   #: bounds |sigma_tilde(0)|
+        self.eta_start = eta_hat0.copy()                                           #: eta_hat at the last restart
         self.filter_gammas = gamma_hat0
         self.filters = GpeboFilters(model, self._transition(gamma_hat0), x_hat0)
         self.window = np.zeros((self.regression.window, 2))  #: [u, y] of samples k-6 .. k, oldest first
@@ -108,7 +122,8 @@ class GpeboObserver(Block):
         self.restart_time = 0.0
         self.input_sizes = {"u": 1, "y": 1}
         self.output_sizes = {"x_hat": n, "gamma_hat": 2, "eta_hat": N, "beta_hat": 1, "theta_hat": n,
-                             "excited": 1, "nu_gamma": 1, "nu_eta": 1, "restart_time": 1}
+                             "excited": 1, "nu_gamma": 1, "nu_eta": 1, "restart_time": 1,
+                             "excitation": 1, "converged": 1}
 
     # ------------------------------------------------------------------ pieces
     def _transition(self, gammas) -> np.ndarray:
@@ -123,6 +138,25 @@ class GpeboObserver(Block):
     def excited(self) -> bool:
         return self.nu_gamma < self.excitation_tol and self.nu_eta < self.excitation_tol
 
+    def gamma_error_bound(self) -> float:
+        """Guaranteed bound on ``max |gamma_hat - gamma|`` (Statement 2 and ``gamma = sigma^L(sigma)``)."""
+        e = self.nu_gamma * self.sigma_error0
+        s = np.abs(self.gamma_drem.theta_hat)
+        return float(max(e[0], s[0] * e[3] + s[3] * e[0] + e[0] * e[3]))
+
+    def eta_error_bound(self) -> float:
+        """Bound on ``max |eta_hat - eta|`` since the last restart (exact eta regression)."""
+        return float(self.nu_eta * np.max(np.abs(self.eta_start) + self.theta_bound))
+
+    @property
+    def converged(self) -> bool:
+        """Both bounds within the tolerance, and the filters run with a ``Gamma`` within it of the true one
+        (``|gamma_filters - gamma| <= |gamma_filters - gamma_hat| + bound``): the eta regression is
+        exact only for the true ``Gamma``."""
+        tolerance, bound = self.converged_tolerance, self.gamma_error_bound()
+        gap = float(np.max(np.abs(self.filter_gammas - self.gamma_hat))) + bound
+        return bound <= tolerance and gap <= tolerance and self.eta_error_bound() <= tolerance
+
     def _moved(self, gammas: np.ndarray) -> bool:
         scale = max(1.0, float(np.max(np.abs(gammas))))
         return float(np.max(np.abs(gammas - self.filter_gammas))) > self.restart_tol * scale
@@ -134,7 +168,9 @@ class GpeboObserver(Block):
         return {"x_hat": self.filters.state_estimate(eta_hat), "gamma_hat": self.gamma_hat,
                 "eta_hat": eta_hat.copy(), "beta_hat": np.array([beta]), "theta_hat": theta,
                 "excited": np.array([float(self.excited)]), "nu_gamma": np.array([self.nu_gamma]),
-                "nu_eta": np.array([self.nu_eta]), "restart_time": np.array([self.restart_time])}
+                "nu_eta": np.array([self.nu_eta]), "restart_time": np.array([self.restart_time]),
+                "excitation": np.array([min(abs(self.gamma_drem.delta), abs(self.eta_drem.delta))]),
+                "converged": np.array([float(self.converged)])}
 
     def advance(self, t: float, h: float, inputs: Mapping[str, Segment]) -> None:
         """Process sample ``k`` (``u(k)``, ``y(k)`` = input values at the step start)."""
@@ -163,6 +199,7 @@ class GpeboObserver(Block):
             xi_hat, x_hat = self.filters.generator_estimate(eta_hat), self.filters.state_estimate(eta_hat)
             self.filters.restart(self._transition(gammas), x_hat)
             self.eta_drem.reset(xi_hat)
+            self.eta_start = xi_hat.copy()
             self.filter_gammas, self.nu_eta, self.restart_time = gammas, 1.0, t
         # step 2: eta = xi(t0) from y = phi_y eta (4), DREM with delays (17)-(19)
         if self.filters.exact:

@@ -66,7 +66,10 @@ from ..integrators import DEFAULT_SUBSTEP_BUDGET, require_budget, substep_count
 from .stepping import (SUBSTEP_POINTS, IntegralSamples, PolynomialInputs, output_function, resolved_output,
                            rk4_linear, substep_points, time_function)
 
-__all__ = ["LTVAdaptiveObserver"]
+__all__ = ["LTVAdaptiveObserver", "PARTS"]
+
+#: the parameters of paper 001's plant that may be unknown (x(0) always is), in the order of Theta
+PARTS = ("k", "b", "m")
 
 #: Gauss-Legendre nodes on [0, 1] of the two-point rule (equal weights 1/2)
 GAUSS_NODES = SUBSTEP_POINTS[2:]
@@ -111,20 +114,41 @@ class LTVAdaptiveObserver(Block):
         interpolates ``y - C^T m_hat int f(y)``.  For outputs that ``f(y)`` makes oscillate
         faster than the samples (paper case: 1e-3 s steps instead of 1e-4 s); False: the
         polynomial through the samples of ``y``.
+    converged_tolerance : float
+        ``converged`` is 1 once the guaranteed bound on ``|Theta_hat - Theta|_2`` is at most this.
+    theta_bound : float
+        A-priori bound on every entry of ``Theta = [-x(0); k; b; m]``: ``|Theta_i| <= theta_bound``.
+    regression_error_bound : float
+        A-priori bound on the error of regression (7), ``|z - Psi Theta|`` (noise, model error);
+        0: the regression is exact.
+    unknowns : sequence of str
+        Which of ``k``, ``b``, ``m`` are unknown (``x(0)`` always is); default all three.  The
+        others are known: give their values as ``k``, ``b``, ``m``.  Their filters move to the
+        left side of (7), ``z = y - C^T (xi + sum_known W_j v_j)``, and ``Theta`` holds only
+        ``[-x(0); unknowns]`` (no dummy unknowns).
+    k, b, m : array_like, shape (n,), optional
+        Values of the known parameters (exactly those not in ``unknowns``).
 
     Notes
     -----
     Ports: inputs ``u``, ``y`` (scalars); outputs ``x_hat`` (n), ``theta_hat`` (4 n, the whole
     ``Theta_hat``), its parts ``k_hat``, ``b_hat``, ``m_hat``, ``x0_hat = -theta_hat[:n]``, and
-    ``F_max``, the largest eigenvalue of the gain ``F`` (bounded by ``M``; watch it under noise).
+    ``F_max``, the largest eigenvalue of the gain ``F`` (bounded by ``M``; watch it under noise);
+    then the diagnostics contract (docs/estimation.md, "Diagnostics"): ``excitation =
+    lambda_min(P) / gamma`` (``P = F^-1``) and ``converged`` (1 once
+    :meth:`~observers.estimation.LeastSquaresForgetting.error_bound` is at most
+    ``converged_tolerance``, else 0).
     """
 
-    not_state = ("A", "L", "f", "C", "n", "max_substep", "max_dy", "substep_budget", "_forcing", "f_correction")
+    not_state = ("A", "L", "f", "C", "n", "max_substep", "max_dy", "substep_budget", "_forcing", "f_correction",
+                 "converged_tolerance", "regression_error_bound", "initial_error", "unknowns", "_columns",
+                 "_known_columns", "_known")
     state_optional = {"_memo_key": None, "_memo": None}
 
     def __init__(self, A, C, L, f, gamma=1000.0, beta=1.0, f0=0.1, M=1e12, x_hat0=None, k_hat0=None,
                  b_hat0=None, m_hat0=None, max_substep=1e-3, max_dy=0.2, input_degree=2,
-                 substep_budget=DEFAULT_SUBSTEP_BUDGET, f_correction=False):
+                 substep_budget=DEFAULT_SUBSTEP_BUDGET, f_correction=False, converged_tolerance=1e-3,
+                 theta_bound=100.0, regression_error_bound=0.0, unknowns=PARTS, k=None, b=None, m=None):
         self.C = as_vector("C", C)
         if not np.any(self.C):
             raise ParameterError("C: the output vector is zero; y = C^T x would measure nothing")
@@ -136,11 +160,24 @@ class LTVAdaptiveObserver(Block):
         self.max_substep = require_positive("max_substep", max_substep)
         self.max_dy = require_positive("max_dy", max_dy)
         self.substep_budget = require_budget(substep_budget)
+        self.unknowns, known = _split_unknowns(unknowns, {"k": k, "b": b, "m": m}, n)
+        starts = {"k": k_hat0, "b": b_hat0, "m": m_hat0}
+        for name in known:
+            if starts[name] is not None:
+                raise ParameterError(f"{name}_hat0: {name} is known (not in unknowns); it has no estimate")
         initial = [np.zeros(n) if v is None else as_vector(name, v, n)
-                   for name, v in (("x_hat0", x_hat0), ("k_hat0", k_hat0), ("b_hat0", b_hat0),
-                                   ("m_hat0", m_hat0))]
+                   for name, v in [("x_hat0", x_hat0)] + [(f"{p}_hat0", starts[p]) for p in self.unknowns]]
         theta0 = np.concatenate([-initial[0]] + initial[1:])
-        self.estimator = LeastSquaresForgetting(4 * n, gamma, beta, f0, M, theta0)
+        blocks = [0] + [1 + PARTS.index(p) for p in self.unknowns]
+        self._columns = None if len(blocks) == 4 else np.concatenate([np.arange(j * n, (j + 1) * n) for j in blocks])
+        self._known_columns = np.array([j * n + i for p in known for j in [1 + PARTS.index(p)] for i in range(n)],
+                                       dtype=np.intp)
+        self._known = np.concatenate([known[p] for p in known]) if known else np.zeros(0)
+        self.estimator = LeastSquaresForgetting(theta0.size, gamma, beta, f0, M, theta0)
+        self.converged_tolerance = require_positive("converged_tolerance", converged_tolerance)
+        self.regression_error_bound = require_positive("regression_error_bound", regression_error_bound, allow_zero=True)
+        # |Theta_hat(0) - Theta|_2 <= | |Theta_hat(0)| + theta_bound |_2
+        self.initial_error = float(np.linalg.norm(np.abs(theta0) + require_positive("theta_bound", theta_bound)))
         # S = [xi, W] = [xi, -Phi, eta, zeta, rho], n x (1 + 4 n)
         self.S = np.zeros((n, 1 + 4 * n))
         self.S[:, 1:1 + n] = -np.eye(n)
@@ -154,8 +191,8 @@ class LTVAdaptiveObserver(Block):
         self.integral = IntegralSamples(self.inputs.degree)   # int f(y) at the last samples (f_correction)
         self._memo_key, self._memo = None, None
         self.input_sizes = {"u": 1, "y": 1}
-        self.output_sizes = {"x_hat": n, "theta_hat": 4 * n, "k_hat": n, "b_hat": n, "m_hat": n,
-                             "x0_hat": n, "F_max": 1}
+        self.output_sizes = {"x_hat": n, "theta_hat": theta0.size, "k_hat": n, "b_hat": n, "m_hat": n,
+                             "x0_hat": n, "F_max": 1, "excitation": 1, "converged": 1}
 
     # ------------------------------------------------------------------ equations
     def _evaluate(self, t: float, y: float, u: float):
@@ -171,17 +208,29 @@ class LTVAdaptiveObserver(Block):
         """Regression (7): ``z = y - C^T xi`` and ``Psi = C^T W``."""
         return y - self.C @ S[:, 0], self.C @ S[:, 1:]
 
+    def full_theta(self) -> np.ndarray:
+        """``[-x0_hat; k; b; m]`` of length ``4 n``: the estimates, and the known values where known."""
+        theta = self.estimator.theta_hat
+        if self._columns is None:
+            return theta
+        full = np.zeros(4 * self.n)
+        full[self._columns] = theta
+        full[self._known_columns] = self._known
+        return full
+
     def state_estimate(self) -> np.ndarray:
-        """The estimate from (10): ``x_hat = xi + W Theta_hat``."""
-        return self.S[:, 0] + self.S[:, 1:] @ self.estimator.theta_hat
+        """The estimate from (10): ``x_hat = xi + W Theta_hat`` (known parts with their values)."""
+        return self.S[:, 0] + self.S[:, 1:] @ self.full_theta()
 
     # ------------------------------------------------------------------ Block interface
     def outputs(self, t: float, inputs: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
-        n, theta = self.n, self.estimator.theta_hat.copy()
-        F_max = self.estimator.F_max
-        return {"x_hat": self.state_estimate(), "theta_hat": theta, "k_hat": theta[n:2 * n],
+        n, estimator = self.n, self.estimator
+        theta = self.full_theta().copy()
+        converged = estimator.error_bound(self.initial_error, self.regression_error_bound) <= self.converged_tolerance
+        return {"x_hat": self.state_estimate(), "theta_hat": estimator.theta_hat.copy(), "k_hat": theta[n:2 * n],
                 "b_hat": theta[2 * n:3 * n], "m_hat": theta[3 * n:], "x0_hat": -theta[:n],
-                "F_max": np.array([F_max])}
+                "F_max": np.array([estimator.F_max]), "excitation": np.array([estimator.lambda_min / estimator.gamma]),
+                "converged": np.array([float(converged)])}
 
     def advance(self, t: float, h: float, inputs: Mapping[str, Segment]) -> None:
         polynomials, history = self.inputs.step(t, h, inputs)
@@ -207,7 +256,10 @@ class LTVAdaptiveObserver(Block):
         y_nodes = np.array([value for points in y_inside for value in points[2:]])
         weights = _quadrature_weights(count, h, self.estimator.beta)
         estimator = copy.copy(self.estimator)          # committed only if the whole step succeeds
-        estimator.update(weights * (y_nodes - CS[:, 0]), weights[:, None] * CS[:, 1:], h)
+        z, Psi = y_nodes - CS[:, 0], CS[:, 1:]
+        if self._columns is not None:                    # known parts of (10) to the left side of (7)
+            z, Psi = z - Psi[:, self._known_columns] @ self._known, Psi[:, self._columns]
+        estimator.update(weights * z, weights[:, None] * Psi, h)
         self.S, self.estimator, self.integral = S, estimator, integral
         self._memo_key, self._memo = (t + h, y.at(h), u.at(h)), end
         self.inputs = history
@@ -223,7 +275,7 @@ class LTVAdaptiveObserver(Block):
         if not self.f_correction:
             return substep_points(y, count), self.integral
         times, _ = history.history("y")                # the polynomial's nodes, ending at t + h
-        mu = float(self.C @ self.estimator.theta_hat[3 * self.n:])
+        mu = float(self.C @ self.full_theta()[3 * self.n:])
         past = self.integral.at(times[:-1]) if abs(mu) * h <= 0.5 else None
         y_inside, change = resolved_output(self.f, y, times, past, mu, count)
         return y_inside, self.integral.after(t, h, change)
@@ -232,6 +284,23 @@ class LTVAdaptiveObserver(Block):
         """The step starts where the previous one ended (to round-off): its end coefficients apply."""
         key = self._memo_key
         return key is not None and all(abs(a - b) <= 1e-12 * max(1.0, abs(a)) for a, b in zip(key, (t, y, u)))
+
+
+def _split_unknowns(unknowns, values: dict, n: int) -> tuple[tuple[str, ...], dict[str, np.ndarray]]:
+    """``(unknowns in the order k, b, m, {known name: value})``; every mistake names the field."""
+    names = [unknowns] if isinstance(unknowns, str) else list(unknowns)
+    wrong = [name for name in names if name not in PARTS]
+    if wrong or len(set(names)) != len(names):
+        raise ParameterError(f"unknowns: expected distinct names among {list(PARTS)}, got {names}")
+    known = {}
+    for name in PARTS:
+        if name in names and values[name] is not None:
+            raise ParameterError(f"{name}: {name} is unknown (in unknowns); give no value, or remove it from unknowns")
+        if name not in names:
+            if values[name] is None:
+                raise ParameterError(f"{name}: {name} is known (not in unknowns); its value is required")
+            known[name] = as_vector(name, values[name], n)
+    return tuple(name for name in PARTS if name in names), known
 
 
 @lru_cache(maxsize=64)
@@ -253,7 +322,8 @@ def _quadrature_weights(count: int, h: float, beta: float) -> np.ndarray:
 
 
 def _require_stable_A0(A, L, C, times=np.linspace(0.0, 10.0, 21), tolerance=1e-9) -> None:
-    """Refuse an ``L`` for which ``A0(t) = A(t) - L(t) C^T`` has an unstable frozen eigenvalue.
+    """Refuse an ``L`` for which ``A0(t) = A(t) - L(t) C^T`` has an unstable frozen eigenvalue, and a
+    ``C`` with which a frozen ``(A0(t), C^T)`` is not observable.
 
     Frozen-time eigenvalues do not prove uniform stability of an LTV system; this catches
     wrong signs and dimensions early.  A0 growing at run time is caught in ``advance``.
@@ -262,6 +332,11 @@ def _require_stable_A0(A, L, C, times=np.linspace(0.0, 10.0, 21), tolerance=1e-9
         A0 = np.asarray(A(t), dtype=float) - np.outer(np.asarray(L(t), dtype=float), C)
         if not np.all(np.isfinite(A0)):
             raise ParameterError(f"L: A0(t) = A(t) - L(t) C^T is not finite at t = {t:g}")
+        observability = np.array([C @ np.linalg.matrix_power(A0, i) for i in range(C.size)])
+        if np.linalg.matrix_rank(observability) < C.size:
+            raise ParameterError(f"C: (A0(t), C^T) is not observable at t = {t:g} (the rank of "
+                                 f"[C^T; C^T A0; ...] is {np.linalg.matrix_rank(observability)} < n = {C.size}); "
+                                 f"the regression (7) cannot identify x(0)")
         eigenvalues = np.linalg.eigvals(A0)
         worst = eigenvalues[np.argmax(eigenvalues.real)]
         if worst.real > tolerance * max(1.0, np.abs(A0).max()):

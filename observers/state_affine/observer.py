@@ -106,6 +106,10 @@ class StateAffineObserver(Block):
         Longest internal step (s); ``None``: one internal step per communication step.
     substep_budget : int, optional
         Most internal steps one communication step may take (a longer step is refused).
+    converged_tolerance : float, default 1e-3
+        ``converged`` is 1 once the guaranteed error of ``theta_hat`` is at most this.
+    theta_bound : float, default 100
+        A-priori bound on every entry of ``col(theta_l, theta_p)``.
 
     Attributes
     ----------
@@ -119,14 +123,20 @@ class StateAffineObserver(Block):
         ``nu``; ``theta*`` is exact once ``nu < mu``.
     switch_time : float or None
         First communication-step end with ``nu < mu``.
+    converged : bool
+        The diagnostics contract (docs/estimation.md, "Diagnostics"): ``nu < mu`` (``theta*`` exact
+        for an exact regression) and ``nu max_i (|theta_hat0_i| + theta_bound) <= converged_tolerance``
+        (the plain DREM estimate is within the tolerance too, so a small regression error, which
+        ``theta*`` amplifies by ``1 / (1 - nu)``, is not amplified).  Output ``excitation = |Delta|``.
     """
 
     not_state = ("model", "parametrization", "gamma", "gamma_x", "mu", "max_substep", "substep_budget",
-                 "theta_hat0")
+                 "theta_hat0", "converged_tolerance", "initial_error")
     state_optional = {"switch_time": None}
 
     def __init__(self, model: StateAffineModel, rates, gamma, gamma_x, mu=0.98, chi_hat0=None,
-                 theta_hat0=None, max_substep=None, substep_budget=SUBSTEP_BUDGET):
+                 theta_hat0=None, max_substep=None, substep_budget=SUBSTEP_BUDGET, converged_tolerance=1e-3,
+                 theta_bound=100.0):
         if not isinstance(model, StateAffineModel):
             raise ParameterError(f"model: expected a StateAffineModel, got {type(model).__name__}")
         self.model = model
@@ -141,8 +151,12 @@ class StateAffineObserver(Block):
         self.substep_budget = require_budget(substep_budget)
         self.theta_hat0 = np.zeros(n_theta) if theta_hat0 is None else as_vector("theta_hat0", theta_hat0, n_theta)
         chi_hat0 = np.zeros(q) if chi_hat0 is None else as_vector("chi_hat0", chi_hat0, q)
+        self.converged_tolerance = require_positive("converged_tolerance", converged_tolerance)
+        self.initial_error = float(np.max(np.abs(self.theta_hat0) + require_positive("theta_bound", theta_bound),
+                                          initial=0.0))
         self.input_sizes = {"y": model.ny, "u": model.nu}
-        self.output_sizes = {"x_hat": model.n, "theta_hat": n_theta, "chi_hat": q, "Delta": 1, "nu": 1}
+        self.output_sizes = {"x_hat": model.n, "theta_hat": n_theta, "chi_hat": q, "Delta": 1, "nu": 1,
+                             "excitation": 1, "converged": 1}
         self.filters = self.parametrization.initial_state()
         self.mixed, self.delta = mix(*self.parametrization.regression(self.filters))
         self.theta_drem = self.theta_hat0.copy()
@@ -154,7 +168,12 @@ class StateAffineObserver(Block):
     # ------------------------------------------------------------------ outputs
     def outputs(self, t: float, inputs: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
         return {"x_hat": self.model.inverse(self.chi_hat, self.theta_hat), "theta_hat": self.theta_hat.copy(),
-                "chi_hat": self.chi_hat.copy(), "Delta": np.array([self.delta]), "nu": np.array([self.nu])}
+                "chi_hat": self.chi_hat.copy(), "Delta": np.array([self.delta]), "nu": np.array([self.nu]),
+                "excitation": np.array([abs(self.delta)]), "converged": np.array([float(self.converged)])}
+
+    @property
+    def converged(self) -> bool:
+        return self.nu < self.mu and self.nu * self.initial_error <= self.converged_tolerance
 
     # ------------------------------------------------------------------ one step
     def _theta_part(self, mixed: np.ndarray) -> np.ndarray:

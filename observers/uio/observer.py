@@ -72,6 +72,9 @@ class UIOSettings:
     filter_order : order of the filter of (14), ``>= r``; ``None``: ``r + 1``
         (see :class:`~observers.uio.regressions.RegressionSignals`).
     substep_budget : most RK4 sub-steps of stage 4 in one step (a longer step is refused).
+    converged_tolerance, decay_rate : the ``converged`` criterion (docs/estimation.md,
+        "Diagnostics"): the tolerance, and ``sigma``, a lower bound on the exponential rate of the
+        errors of stages 2-4 (``None`` or 0: the slowest filter pole, :meth:`UIOFiniteTimeObserver.slowest_rate`).
     """
 
     lambdas: tuple = (10.0, 10.0, 10.0)
@@ -84,6 +87,8 @@ class UIOSettings:
     normalize: bool = False
     filter_order: int | None = None
     substep_budget: int = DEFAULT_SUBSTEP_BUDGET
+    converged_tolerance: float = 1e-3
+    decay_rate: float | None = None
 
 
 def default_rates(count: int, lam: float) -> np.ndarray:
@@ -126,7 +131,7 @@ class UIOFiniteTimeObserver(Block):
     """
 
     not_state = ("design", "H", "B_bar", "free", "xi0_known", "harmonics", "lambdas", "gamma", "mu", "normalize",
-                 "sizes", "rates", "signals", "_settle", "substep_budget")
+                 "sizes", "rates", "signals", "_settle", "substep_budget", "converged_tolerance", "decay_rate")
     state_optional = {"state_stage": "_blank_state_stage", "state_detector": "_blank_state_detector"}
 
     def __init__(self, A, B, C, r, L, H, B_bar, z0, xi0_free, xi0_known, harmonics=1,
@@ -164,6 +169,9 @@ class UIOFiniteTimeObserver(Block):
                                          as_vector("z0", z0, n), s.filter_order)
         self.stage = [self._drem(k) for k in range(3)]
         self._settle = (s.settle_tol, s.settle_window, s.t_identify)
+        self.converged_tolerance = require_positive("converged_tolerance", s.converged_tolerance)
+        rate = 0.0 if s.decay_rate is None else require_positive("decay_rate", s.decay_rate, allow_zero=True)
+        self.decay_rate = rate or self.slowest_rate()
         self.detectors = [SettlingDetector(*self._settle) for _ in range(2)]   # stages 2, 3; stage 4 on start
         self.state_stage: IdentifiedPlantObserver | None = None
         self.state_detector: SettlingDetector | None = None
@@ -171,7 +179,7 @@ class UIOFiniteTimeObserver(Block):
         self.y_last = 0.0
         self.input_sizes = {"y": 1}
         self.output_sizes = {"x_hat": n, "x_tilde0_hat": n, "xi0_hat": m, "theta_hat": n, "omega_hat": N,
-                             "f_hat": 1, "identified": 4, "t_identified": 4}
+                             "f_hat": 1, "identified": 4, "t_identified": 4, "excitation": 1, "converged": 1}
 
     def _drem(self, k: int) -> FiniteTimeDREM:
         return FiniteTimeDREM(FilterBankExtension(self.rates[k]), self.gamma[k], self.mu,
@@ -229,6 +237,40 @@ class UIOFiniteTimeObserver(Block):
             stages.append((self.state_detector.status, self.state_detector.time))
         return stages
 
+    # ------------------------------------------------------------------ diagnostics contract
+    def slowest_rate(self) -> float:
+        """The slowest pole of the filters behind stages 2-4: filter and extension rates, ``eig(F)``."""
+        rates = [*self.lambdas, *np.concatenate(self.rates), *-np.linalg.eigvals(self.design.F).real]
+        return float(min(rates))
+
+    def _drems(self) -> list[FiniteTimeDREM | None]:
+        return self.stage + [None if self.state_stage is None else self.state_stage.drem]
+
+    def excitation(self) -> float:
+        """Smallest ``|Delta|`` of the stages still adapting (0 for one not started); all done: of all."""
+        running = [code == RUNNING for code, _ in self.status()]
+        drems = self._drems()
+        chosen = [d for d, r in zip(drems, running) if r] or [d for d in drems if d is not None]
+        return float(min(0.0 if d is None else abs(d.delta) for d in chosen))
+
+    def error_bound(self) -> float:
+        """Bound on the error of stages 2-4 once all are identified (``inf`` before, or after a timeout).
+
+        If an error decays at least like ``e^{-sigma t}``, a change of at most ``c`` over the quiet
+        window ``W`` bounds it by ``c / expm1(sigma W)``; ``c = settle_tol (1 + |reference|)``.
+        Stage 1 is exact once its FT-DREM switched (exact regression (10)).
+        """
+        if any(code != SETTLED for code, _ in self.status()):
+            return np.inf
+        detectors = self.detectors + ([] if self.state_detector is None else [self.state_detector])
+        tol, window = self._settle[0], self._settle[1]
+        change = max(tol * (1.0 + float(np.max(np.abs(d.reference)))) for d in detectors)
+        return change / np.expm1(self.decay_rate * window) if window > 0 else np.inf
+
+    @property
+    def converged(self) -> bool:
+        return self.error_bound() <= self.converged_tolerance
+
     # ------------------------------------------------------------------ Block interface
     def _state_stage(self, theta: np.ndarray, x_hat0: np.ndarray) -> IdentifiedPlantObserver:
         return IdentifiedPlantObserver(self.design.A, self.design.B, self.design.C, theta,
@@ -254,6 +296,8 @@ class UIOFiniteTimeObserver(Block):
             "f_hat": np.array([self.f_hat(t)]),
             "identified": np.array([float(code) for code, _ in status]),
             "t_identified": np.array([-1.0 if time is None else time for _, time in status]),
+            "excitation": np.array([self.excitation()]),
+            "converged": np.array([float(self.converged)]),
         }
 
     def advance(self, t: float, h: float, inputs: Mapping[str, Segment]) -> None:

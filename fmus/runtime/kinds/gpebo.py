@@ -19,6 +19,7 @@ from plants.gpebo import EXAMPLE, GeneratorPlant, example_model
 from ..callables import resolve
 from ..definition import FmuDefinition, Parameter, Port
 from . import register
+from .diagnostics import GPEBO_CONTRACT, contract_parameters, contract_ports, contract_values
 
 __all__ = ["generator_plant_definition", "gpebo_observer_definition"]
 
@@ -38,7 +39,7 @@ def _generator_plant(p, options):
 def _gpebo_observer(p, options):
     return GpeboObserver(example_model(resolve(options["f"], "f")), float(p["Ts"]), float(p["k_gamma"]),
                          float(p["k_eta"]), p["gamma_hat0"], p["eta_hat0"], p["x_hat0"],
-                         float(p["restart_tol"]), float(p["excitation_tol"]))
+                         float(p["restart_tol"]), float(p["excitation_tol"]), *contract_values(p, GPEBO_CONTRACT))
 
 
 def _scalar(name, value, description, unit=None) -> Parameter:
@@ -92,7 +93,8 @@ def generator_plant_definition(model_name: str, *, gamma_beta=EXAMPLE["gamma_bet
 
 def gpebo_observer_definition(model_name: str, *, Ts: float = 1.0, k_gamma: float = 1e-8, k_eta: float = 1e-8,
                               gamma_hat0=(-0.5, 0.5), eta_hat0=None, x_hat0=None, restart_tol: float = 1e-11,
-                              excitation_tol: float = 1e-9, f: str = "plants.gpebo:sine",
+                              excitation_tol: float = 1e-9, converged_tolerance: float = 1e-6,
+                              theta_bound: float = 100.0, f: str = "plants.gpebo:sine",
                               description: str = "") -> FmuDefinition:
     """GPEBO + DREM observer of paper 000's example (``n = 2``, ``eta`` of 4 entries)."""
     model = example_model()
@@ -113,7 +115,7 @@ def gpebo_observer_definition(model_name: str, *, Ts: float = 1.0, k_gamma: floa
             Parameter.of("x_hat0", np.zeros(n) if x_hat0 is None else x_hat0, "initial estimate x_hat(0)"),
             _scalar("restart_tol", restart_tol, "relative change of gamma_hat that restarts the GPEBO filters"),
             _scalar("excitation_tol", excitation_tol, "excited = 1 once nu_gamma and nu_eta are below this"),
-        ],
+        ] + contract_parameters(GPEBO_CONTRACT, converged_tolerance=converged_tolerance, theta_bound=theta_bound),
         inputs=[Port("u", 1, "plant input u(k), taken at the step start", scalar=True),
                 Port("y", 1, "measured output y(k), taken at the step start", scalar=True)],
         outputs=[
@@ -127,7 +129,7 @@ def gpebo_observer_definition(model_name: str, *, Ts: float = 1.0, k_gamma: floa
             Port("nu_gamma", 1, "guaranteed error factor of sigma_hat: prod k/(k + Delta^2)", scalar=True),
             Port("nu_eta", 1, "guaranteed error factor of eta_hat since restart_time", scalar=True),
             Port("restart_time", 1, "time of the last restart of the GPEBO filters", "s", scalar=True),
-        ],
+        ] + contract_ports(GPEBO_CONTRACT),
         options={"f": f},
         variable_step=False,  # one step = one sample of length Ts
     )

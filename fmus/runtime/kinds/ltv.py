@@ -15,12 +15,14 @@ import numpy as np
 from observers.checks import ParameterError
 from observers.integrators import DEFAULT_SUBSTEP_BUDGET
 from observers.ltv import LTVAdaptiveObserver
+from observers.ltv.observer import PARTS
 from plants.ltv import OutputNonlinearLTVPlant
 from plants.signals import SampledNoise
 
 from ..callables import reference, resolve
 from ..definition import FmuDefinition, Parameter, Port
 from . import register
+from .diagnostics import LS_CONTRACT, contract_parameters, contract_ports, contract_values
 
 __all__ = ["ltv_plant_definition", "ltv_observer_definition"]
 
@@ -44,11 +46,21 @@ def _plant(p, options):
 
 @register(OBSERVER_KIND)
 def _observer(p, options):
+    unknowns = _unknowns(options)
+    known = {name: p.get(name) for name in PARTS if name not in unknowns}
     return LTVAdaptiveObserver(_function(options, "A"), p["C"], _function(options, "L"), _function(options, "f"),
                                float(p["gamma"]), float(p["beta"]), float(p["f0"]), float(p["M"]),
-                               p["x_hat0"], p["k_hat0"], p["b_hat0"], p["m_hat0"],
+                               p["x_hat0"], p.get("k_hat0"), p.get("b_hat0"), p.get("m_hat0"),
                                float(p["max_substep"]), float(p["max_dy"]), _degree(p), _budget(p),
-                               _flag(p, "f_correction"))
+                               _flag(p, "f_correction"), *contract_values(p, LS_CONTRACT), unknowns=unknowns, **known)
+
+
+def _unknowns(options: dict) -> tuple[str, ...]:
+    """The option ``unknowns``: names among k, b, m separated by commas ("k,m"); default all three."""
+    text = options.get("unknowns", ",".join(PARTS))
+    if not isinstance(text, str):
+        raise ParameterError(f"unknowns: expected names among {list(PARTS)} separated by commas, got {text!r}")
+    return tuple(name.strip() for name in text.split(",") if name.strip())
 
 
 def _flag(p, name: str) -> bool:
@@ -123,20 +135,36 @@ def ltv_plant_definition(model_name: str, A, C, f, k, b, m, x0, *, noise_std=0.0
 
 def ltv_observer_definition(model_name: str, A, C, L, f, *, gamma=1000.0, beta=1.0, f0=0.1, M=1e12,
                             x_hat0=None, k_hat0=None, b_hat0=None, m_hat0=None, max_substep=1e-3,
-                            max_dy=0.2, input_degree=2, f_correction=0, description: str = "") -> FmuDefinition:
+                            max_dy=0.2, input_degree=2, f_correction=0, converged_tolerance=1e-3, theta_bound=100.0,
+                            regression_error_bound=0.0, unknowns=PARTS, known: dict | None = None,
+                            description: str = "") -> FmuDefinition:
     """Adaptive observer FMU of paper 001 (filters (2)-(6), regression (7), LS with forgetting, (10)).
 
     ``A``, ``L``, ``f`` are module-level functions or ``"module:function"`` references; ``C`` is
-    the output vector (length n).  Checked by building the block once.
+    the output vector (length n).  ``unknowns``: which of ``k``, ``b``, ``m`` are estimated (with
+    ``x(0)``); the others are parameters with the values ``known[name]`` (vectors of n), and
+    ``theta_hat`` holds ``[-x(0); unknowns]`` only.  Checked by building the block once.
     """
     n = np.size(C)
     zeros = np.zeros(n)
+    unknowns = tuple(unknowns)
+    known = dict(known or {})
     options = {"A": _reference(A), "L": _reference(L), "f": _reference(f)}
-    estimates = [("x_hat0", x_hat0, "initial estimate of x(0) (= x_hat(0))"),
-                 ("k_hat0", k_hat0, "initial estimate of k"), ("b_hat0", b_hat0, "initial estimate of b"),
-                 ("m_hat0", m_hat0, "initial estimate of m")]
+    if unknowns != PARTS:
+        options["unknowns"] = ",".join(unknowns)
+    starts = {"k": k_hat0, "b": b_hat0, "m": m_hat0}
+    estimates = [("x_hat0", x_hat0, "initial estimate of x(0) (= x_hat(0))")] \
+        + [(f"{name}_hat0", starts[name], f"initial estimate of {name}") for name in PARTS if name in unknowns]
+    for name in PARTS:
+        if name in unknowns and name in known:
+            raise ParameterError(f"{name}: {name} is in unknowns; it cannot also be known")
+        if name not in unknowns and starts[name] is not None:
+            raise ParameterError(f"{name}_hat0: {name} is known (not in unknowns); it has no estimate")
+    values = [Parameter.of(name, known[name], f"known {name} (not estimated)") for name in PARTS
+              if name not in unknowns and name in known]
     parameters = [
         Parameter.of("C", C, "output vector, y = C^T x"),
+    ] + values + [
         _scalar("gamma", gamma, "adaptation gain of the least-squares estimator"),
         _scalar("beta", beta, "forgetting factor", "1/s"),
         _scalar("f0", f0, "F(0) = I / f0"),
@@ -145,7 +173,9 @@ def ltv_observer_definition(model_name: str, A, C, L, f, *, gamma=1000.0, beta=1
       + _stepping(max_substep, max_dy, input_degree) \
       + [_scalar("f_correction", f_correction, "1: inside a step y follows the polynomial of y - C^T m_hat "
                  "int f(y) plus that fast part (for outputs f(y) makes oscillate between samples); "
-                 "0: the polynomial of y")]
+                 "0: the polynomial of y")] \
+      + contract_parameters(LS_CONTRACT, converged_tolerance=converged_tolerance, theta_bound=theta_bound,
+                            regression_error_bound=regression_error_bound)
     definition = FmuDefinition(
         model_name=model_name, kind=OBSERVER_KIND, options=options,
         description=description or (f"paper 001 adaptive observer: filters (2)-(6), regression (7), least squares "
@@ -154,10 +184,12 @@ def ltv_observer_definition(model_name: str, A, C, L, f, *, gamma=1000.0, beta=1
         parameters=parameters,
         inputs=[Port("u", 1, "plant input u", scalar=True), Port("y", 1, "measured output y", scalar=True)],
         outputs=[Port("x_hat", n, "state estimate x_hat (10)"),
-                 Port("theta_hat", 4 * n, "estimate of Theta = [-x(0); k; b; m]"),
+                 Port("theta_hat", n * (1 + len(unknowns)), f"estimate of Theta = [-x(0); {'; '.join(unknowns)}]"
+                      if unknowns else "estimate of Theta = -x(0)"),
                  Port("k_hat", n, "estimate of k"), Port("b_hat", n, "estimate of b"),
                  Port("m_hat", n, "estimate of m"), Port("x0_hat", n, "estimate of x(0)"),
-                 Port("F_max", 1, "largest eigenvalue of the estimator gain F (bounded by M)", scalar=True)],
+                 Port("F_max", 1, "largest eigenvalue of the estimator gain F (bounded by M)", scalar=True)]
+                + contract_ports(LS_CONTRACT),
     )
     _check(definition)
     return definition

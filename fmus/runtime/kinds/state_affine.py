@@ -21,6 +21,7 @@ from plants.state_affine import Chemostat, Pendulum
 from ..callables import resolve
 from ..definition import FmuDefinition, Parameter, Port
 from . import register
+from .diagnostics import FT_DREM_CONTRACT, contract_parameters, contract_ports, contract_values
 
 __all__ = ["FUNCTIONS", "observer_definition", "pendulum_definition", "chemostat_definition"]
 
@@ -40,7 +41,7 @@ def _observer(p, options):
         phi_L=functions.get("phi_L"), C=p["C"] if constant else None, L=p["L"] if constant else None)
     return StateAffineObserver(model, p["rates"], float(p["gamma"]), float(p["gamma_x"]), float(p["mu"]),
                                p["chi_hat0"], p.get("theta_hat0"), float(p["max_substep"]),
-                               p.get("substep_budget", SUBSTEP_BUDGET))
+                               p.get("substep_budget", SUBSTEP_BUDGET), *contract_values(p, FT_DREM_CONTRACT))
 
 
 def _budget(p):
@@ -50,6 +51,7 @@ def _budget(p):
 def observer_definition(model_name: str, *, dims: dict[str, int], functions: dict[str, str], rates,
                         gamma: float, gamma_x: float, mu: float = 0.98, max_substep: float, chi_hat0=None,
                         theta_hat0=None, Lambda=None, C=None, L=None, units: dict | None = None,
+                        converged_tolerance: float = 1e-3, theta_bound: float = 100.0,
                         description: str = "") -> FmuDefinition:
     """Observer FMU of paper 004.
 
@@ -88,7 +90,7 @@ def observer_definition(model_name: str, *, dims: dict[str, int], functions: dic
         Parameter.substep_budget(SUBSTEP_BUDGET),
         Parameter.of("chi_hat0", np.zeros(q) if chi_hat0 is None else chi_hat0,
                      "initial estimate chi_hat(0) of the image chi = phi(x) (the observer's state)"),
-    ]
+    ] + contract_parameters(FT_DREM_CONTRACT, converged_tolerance=converged_tolerance, theta_bound=theta_bound)
     if l + p:
         parameters.append(Parameter.of("theta_hat0", np.zeros(l + p) if theta_hat0 is None else theta_hat0,
                                        "initial estimate of col(theta_l, theta_p)", units.get("theta")))
@@ -103,7 +105,8 @@ def observer_definition(model_name: str, *, dims: dict[str, int], functions: dic
         outputs.append(Port("theta_hat", l + p, "finite-time estimate of col(theta_l, theta_p)", units.get("theta")))
     outputs += [Port("chi_hat", q, "estimate of chi = phi(x)"),
                 Port("Delta", 1, "Delta = det of the row-normalised extended regressor", scalar=True),
-                Port("nu", 1, "nu of the finite-time estimator (theta_hat exact once nu < mu)", scalar=True)]
+                Port("nu", 1, "nu of the finite-time estimator (theta_hat exact once nu < mu)", scalar=True)] \
+        + contract_ports(FT_DREM_CONTRACT)
     return FmuDefinition(
         model_name=model_name,
         kind="state-affine-observer",

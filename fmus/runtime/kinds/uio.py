@@ -23,6 +23,7 @@ from plants.signals import SampledNoise
 
 from ..definition import FmuDefinition, Parameter, Port
 from . import register
+from .diagnostics import UIO_CONTRACT, contract_parameters, contract_ports, contract_values
 
 __all__ = ["ltv_plant_definition", "uio_observer_definition"]
 
@@ -52,7 +53,8 @@ def _observer(p, options):
         rates=[p[f"rates{k}"] for k in range(1, 5)], settle_tol=p["settle_tol"],
         settle_window=p["settle_window"], t_identify=p["t_identify"], normalize=bool(float(p["normalize"])),
         filter_order=None if order == 0 else order,
-        substep_budget=p.get("substep_budget", DEFAULT_SUBSTEP_BUDGET))
+        substep_budget=p.get("substep_budget", DEFAULT_SUBSTEP_BUDGET),
+        **dict(zip(("converged_tolerance", "decay_rate"), contract_values(p, UIO_CONTRACT))))
     return UIOFiniteTimeObserver(p["A"], p["B"], p["C"], _integer(p, "r"), p["L"], p["H"], p["B_bar"], p["z0"],
                                  p["xi0_free"], p["xi0_known"], int(options["harmonics"]), settings)
 
@@ -140,7 +142,8 @@ def uio_observer_definition(model_name: str, A, B, C, r, L, H, B_bar, z0, xi0_fr
             Parameter.scalar("settle_window", s.settle_window, "quiet window of the identification test", "s"),
             Parameter.scalar("t_identify", s.t_identify, "a stage still running this long after its start is stopped", "s"),
             Parameter.substep_budget(s.substep_budget),
-        ],
+        ] + contract_parameters(UIO_CONTRACT, converged_tolerance=s.converged_tolerance,
+                                decay_rate=s.decay_rate or probe.decay_rate),
         inputs=[Port("y", 1, "measured output y", scalar=True)],
         outputs=[
             Port("x_hat", n, "state estimate"),
@@ -152,6 +155,6 @@ def uio_observer_definition(model_name: str, A, B, C, r, L, H, B_bar, z0, xi0_fr
             Port("identified", 4, "per stage (x_tilde0, xi0/omega, amplitudes, state): 0 running, "
                                   "1 identified, 2 stopped at t_identify without settling"),
             Port("t_identified", 4, "time each stage was identified (-1 before)", "s"),
-        ],
+        ] + contract_ports(UIO_CONTRACT),
         options={"harmonics": N},
     )

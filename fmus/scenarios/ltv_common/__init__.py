@@ -35,6 +35,10 @@ REFERENCES = {"paper": ROOT / "ltv_ls" / "reference.csv", "bounded": ROOT / "ltv
 CASES = {"ltv-ls": "paper", "ltv-ls-bounded": "bounded"}
 NAMES = ["-x0[1]", "-x0[2]", "k[1]", "k[2]", "b[1]", "b[2]", "m[1]", "m[2]"]  #: Theta's entries
 
+#: a-priori bound on every entry of Theta = [-x(0); k; b; m] given to the observer's converged flag
+#: (both scenarios' entries are within 4)
+THETA_BOUND = 5.0
+
 
 #: the shared FMUs' DefaultExperiment: the paper's case (scenario ``ltv-ls``, 0..15 s at 1e-3 s), one definition
 #: per FMU whichever scenario builds it (``ltv-ls-bounded`` runs them 0..20 s at 1e-2 s with its start values)
@@ -49,7 +53,7 @@ def definitions():
         ltv_plant_definition("ltv_ls_plant", "plants.ltv:A_paper", C, "plants.ltv:f_sin", **PAPER,
                              description="paper 001 plant x' = A(t) x + k C^T x + b u + m sin(y), y = x1 (+ noise)"),
         ltv_observer_definition("ltv_ls_observer", "plants.ltv:A_paper", C, "plants.ltv:L_paper",
-                                "plants.ltv:f_sin"),
+                                "plants.ltv:f_sin", theta_bound=THETA_BOUND),
     ]
     for definition in found:
         definition.default_experiment = dict(PAPER_EXPERIMENT)
