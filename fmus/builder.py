@@ -8,7 +8,7 @@ An FMU built here contains (layout and reasons: ``docs/portability.md``):
 * ``binaries/<platform>/<model>.so`` -- the loader of the FMI version, and the bridge for the
   building Python version (:mod:`fmus.native`; FMI 3.0: ``binaries/<platform tuple>/``);
 * ``resources/`` -- the definition JSON, ``build_info.json`` (hash of everything the FMU is made
-  of, for :func:`is_current`), ``obsfmu_native.txt`` (GUID, the Python to use, where the slave
+  of, for :func:`is_current`; the numpy and scipy it was built and tested with: :mod:`fmus.runtime.slave.versions`), ``obsfmu_native.txt`` (GUID, the Python to use, where the slave
   is) and the bundled code relocated under ``_obsfmu_<hash>/`` (:mod:`fmus.bundle`): the project
   packages, pythonfmu's slave base class and the user's extra modules.  The FMU runs in any
   Python environment with numpy and scipy -- not only inside a checkout;
@@ -34,6 +34,7 @@ from . import fmi3, native
 from .bundle import package_init, relocate
 from .output import file_mode
 from .runtime.definition import FmuDefinition, valid_identifier
+from .runtime.slave import versions
 
 __all__ = ["build_fmu", "is_current", "source_hash", "PROJECT_ROOT", "BUNDLED_PACKAGES", "BUNDLED_CODE"]
 
@@ -181,8 +182,9 @@ def build_fmu(definition: FmuDefinition, out_dir: Path | str, extra_modules=(), 
         files = {
             "modelDescription.xml": description,
             f"resources/{model}.json": definition.to_json().encode(),
-            "resources/build_info.json": json.dumps({"source_hash": source_hash(definition, extra_modules,
-                                                                                fmi_version, standalone)}).encode(),
+            f"resources/{versions.BUILD_INFO}": json.dumps({
+                "source_hash": source_hash(definition, extra_modules, fmi_version, standalone),
+                "built_with": versions.running()}).encode(),
             "resources/obsfmu_native.txt": record.encode(),
             "resources/obsfmu_bootstrap.py": native.BOOTSTRAP.read_bytes(),
             f"resources/{package}/_slave_{model}.py": SLAVE_TEMPLATE.format(model=model, json=f"{model}.json").encode(),
@@ -218,6 +220,8 @@ def is_current(fmu: Path, definition: FmuDefinition, extra_modules=(), fmi_versi
     build (standalone or not)."""
     try:
         with zipfile.ZipFile(fmu) as archive:
+            if archive.getinfo("resources/build_info.json").file_size > 1 << 20:    # not ours: rebuilt
+                return False
             info = json.loads(archive.read("resources/build_info.json"))
     except (FileNotFoundError, KeyError, zipfile.BadZipFile, json.JSONDecodeError):
         return False

@@ -1,4 +1,16 @@
-"""The extracted FMUs, once per content: a run opens an FMU from here instead of unzipping it again."""
+"""The extracted FMUs, once per content: a run opens an FMU from here instead of unzipping it again.
+
+An FMU is unzipped only within stated limits, checked on the archive's directory before anything is
+written and again while writing (a header that lies about a size cannot exceed them either):
+
+* :data:`MAX_UNPACKED` -- 1 GiB in all (a standalone FMU, ``obsfmu build --standalone``: ~60 MB);
+* :data:`MAX_ENTRIES` -- 10 000 entries (a standalone FMU: ~300);
+* :data:`MAX_RATIO` -- an entry over :data:`RATIO_FROM` (1 MiB) unpacks to at most 100 times its compressed
+  size (an FMU's code and binaries compress 2-4 times; a zip bomb's zeros about 1000 times).
+
+Beyond them, and for names that leave the folder (``..``, absolute, drive letters, backslashes), the FMU is
+refused at once (:class:`~fmus.master.errors.SimulationError` naming the limit) and nothing stays in the cache.
+"""
 
 from __future__ import annotations
 
@@ -7,17 +19,26 @@ import os
 import shutil
 import tempfile
 import time as wallclock
-from pathlib import Path
+import zipfile
+from pathlib import Path, PurePosixPath
 
-from fmpy import extract
+from ..caches import writable
+from .errors import SimulationError
 
-__all__ = ["EXTRACT_CACHE", "EXTRACT_CACHE_SIZE", "ABANDONED_AFTER", "extracted"]
+__all__ = ["EXTRACT_CACHE", "EXTRACT_CACHE_SIZE", "ABANDONED_AFTER", "MAX_UNPACKED", "MAX_ENTRIES", "MAX_RATIO",
+           "RATIO_FROM", "extracted", "unzip"]
 
 #: extracted FMUs, by content (``OBSFMU_CACHE`` overrides); the newest are kept
 EXTRACT_CACHE = Path(os.environ.get("OBSFMU_CACHE", Path.home() / ".cache" / "obsfmu")) / "extracted"
 EXTRACT_CACHE_SIZE = 64
 #: a partial extraction (``.<digest>.*``) this old was left by a killed run: removed when pruning
 ABANDONED_AFTER = 3600.0
+#: the limits of an FMU to unzip (module docstring)
+MAX_UNPACKED = 1 << 30
+MAX_ENTRIES = 10_000
+MAX_RATIO = 100
+RATIO_FROM = 1 << 20
+_CHUNK = 1 << 20
 
 
 def extracted(fmu: Path) -> Path:
@@ -26,32 +47,88 @@ def extracted(fmu: Path) -> Path:
     Unzipping every FMU afresh (its bundled code: ~100 files) cost 0.15 s of every ``obsfmu run``, plus
     compiling the bundled modules again each time.  Entries are written to a temporary sibling and renamed
     (concurrent runs never see a partial one); beyond :data:`EXTRACT_CACHE_SIZE` the least recently used go.
+    A cache that cannot be written (a read-only file system) is replaced by a private temporary one
+    (:func:`fmus.caches.writable`).
     """
     digest = hashlib.sha256(Path(fmu).read_bytes()).hexdigest()[:32]
-    target = EXTRACT_CACHE / digest
+    cache = writable(EXTRACT_CACHE, "OBSFMU_CACHE")
+    target = cache / digest
     if target.is_dir():
         try:
             os.utime(target)
             return target
         except OSError:                  # another run pruned it just now: extract it again
             pass
-    EXTRACT_CACHE.mkdir(parents=True, exist_ok=True)
-    partial = Path(tempfile.mkdtemp(prefix=f".{digest}.", dir=EXTRACT_CACHE))
-    extract(str(fmu), unzipdir=str(partial))
+    partial = Path(tempfile.mkdtemp(prefix=f".{digest}.", dir=cache))
+    try:
+        unzip(Path(fmu), partial)
+    except BaseException:                # refused, damaged or interrupted: nothing stays
+        shutil.rmtree(partial, ignore_errors=True)
+        raise
     try:
         os.replace(partial, target)
     except OSError:                      # another run extracted it meanwhile
         shutil.rmtree(partial, ignore_errors=True)
-    _prune(keep=target)
+    _prune(cache, keep=target)
     return target
 
 
-def _prune(keep: Path) -> None:
+def unzip(fmu: Path, folder: Path) -> None:
+    """The entries of ``fmu`` written into ``folder``, within the limits of the module docstring;
+    :class:`SimulationError` naming the limit or the damage otherwise (``folder`` may then hold a part)."""
+    try:
+        with zipfile.ZipFile(fmu) as archive:
+            entries = archive.infolist()
+            _check_entries(fmu, entries)
+            written = 0
+            for entry in entries:
+                target = folder.joinpath(*PurePosixPath(entry.filename).parts)
+                if entry.is_dir():
+                    target.mkdir(parents=True, exist_ok=True)
+                    continue
+                target.parent.mkdir(parents=True, exist_ok=True)
+                with archive.open(entry) as source, open(target, "wb") as sink:
+                    while chunk := source.read(_CHUNK):
+                        written += len(chunk)
+                        if written > MAX_UNPACKED:
+                            raise SimulationError(_too_large(fmu, f"more than {written} bytes unpacked"))
+                        sink.write(chunk)
+    except (zipfile.BadZipFile, zipfile.LargeZipFile, NotImplementedError, EOFError, ValueError) as exc:
+        raise SimulationError(f"{fmu}: not a readable FMU archive ({exc}); nothing extracted") from None
+
+
+def _check_entries(fmu: Path, entries: list) -> None:
+    if len(entries) > MAX_ENTRIES:
+        raise SimulationError(f"{fmu}: {len(entries)} entries; an FMU may have at most {MAX_ENTRIES} "
+                              f"(fmus.master.cache.MAX_ENTRIES): refused, nothing extracted")
+    total = sum(entry.file_size for entry in entries)
+    if total > MAX_UNPACKED:
+        raise SimulationError(_too_large(fmu, f"{total} bytes uncompressed"))
+    for entry in entries:
+        parts = PurePosixPath(entry.filename).parts
+        if ("\\" in entry.filename or ":" in entry.filename or entry.filename.startswith("/")
+                or ".." in parts or not parts):
+            raise SimulationError(f"{fmu}: entry {entry.filename!r} would leave the FMU's folder: "
+                                  f"refused, nothing extracted")
+        if entry.file_size > RATIO_FROM and entry.file_size > MAX_RATIO * max(entry.compress_size, 1):
+            raise SimulationError(f"{fmu}: entry {entry.filename} unpacks {entry.file_size} bytes from "
+                                  f"{entry.compress_size} ({entry.file_size / max(entry.compress_size, 1):.0f} "
+                                  f"times); an entry over {RATIO_FROM} bytes may unpack to at most {MAX_RATIO} "
+                                  f"times its size (fmus.master.cache.MAX_RATIO; a zip bomb?): refused, nothing "
+                                  f"extracted")
+
+
+def _too_large(fmu: Path, found: str) -> str:
+    return (f"{fmu}: {found}; an FMU may unpack to at most {MAX_UNPACKED} bytes (1 GiB, "
+            f"fmus.master.cache.MAX_UNPACKED): refused, nothing extracted")
+
+
+def _prune(cache: Path, keep: Path) -> None:
     """Remove all but the :data:`EXTRACT_CACHE_SIZE` most recently used entries (never ``keep``), and
     partial extractions older than :data:`ABANDONED_AFTER` seconds (a run killed while extracting).
     Other processes prune the same cache at the same time: an entry gone meanwhile is skipped."""
     used, abandoned, now = [], [], wallclock.time()
-    for entry in EXTRACT_CACHE.iterdir():
+    for entry in cache.iterdir():
         try:
             modified = entry.stat().st_mtime
         except OSError:
@@ -62,4 +139,4 @@ def _prune(keep: Path) -> None:
             abandoned.append(entry.name)
     for name in abandoned + [name for _, name in sorted(used, reverse=True)[EXTRACT_CACHE_SIZE:]]:
         if name != keep.name:
-            shutil.rmtree(EXTRACT_CACHE / name, ignore_errors=True)
+            shutil.rmtree(cache / name, ignore_errors=True)

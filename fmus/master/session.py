@@ -41,11 +41,12 @@ def open_instance(component: Component, logger: Logger) -> Instance:
     fmu = Path(component.fmu)
     if not fmu.is_file():
         raise SimulationError(f"{component.name}: FMU file {fmu} does not exist (run 'obsfmu build')")
-    description = read_model_description(str(fmu))
+    folder = extracted(fmu)              # first: the archive is checked before anything of it is read
+    description = read_model_description(str(folder))
     if description.coSimulation is None:
         raise SimulationError(f"{component.name}: {fmu} is not a co-simulation FMU")
     implementation = Fmi3Instance if description.fmiVersion.startswith("3") else Fmi2Instance
-    return implementation(component.name, description, extracted(fmu), logger)
+    return implementation(component.name, description, folder, logger)
 
 
 def check_run_settings(stop_time, step, order, start_time, coupling, tolerance) -> None:

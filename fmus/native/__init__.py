@@ -12,7 +12,8 @@ An FMU carries two shared objects (design and limits: ``docs/portability.md``):
 
 Both are compiled with the C compiler (``$CC`` or ``cc``; FMI headers from fmpy) and cached in
 ``$XDG_CACHE_HOME/obsfmu/native`` (default ``~/.cache/obsfmu/native``) under a key of their
-sources, flags and -- for the bridge -- the Python version and headers.
+sources, flags and -- for the bridge -- the Python version and headers (a cache that cannot be written: a
+private temporary one, :mod:`fmus.caches`).
 """
 
 from __future__ import annotations
@@ -25,6 +26,8 @@ import sys
 import sysconfig
 import tempfile
 from pathlib import Path
+
+from ..caches import writable
 
 __all__ = ["NativeBuildError", "platform_folder", "fmi_headers", "loader_library", "bridge_library", "bridge_name",
            "python_record", "identity", "BOOTSTRAP", "OVERRIDE", "STARTS"]
@@ -85,10 +88,12 @@ def _compiled(stem: str, source: Path, flags: list[str], key_material: str) -> P
     """``source`` compiled with ``flags`` into the cache (once per key), atomically."""
     key = hashlib.sha256(source.read_bytes() + b"".join(h.read_bytes() for h in HEADERS) + " ".join(flags).encode()
                          + key_material.encode()).hexdigest()[:16]
-    target = _cache_dir() / f"{stem}-{key}{_suffix()}"
+    name = f"{stem}-{key}{_suffix()}"
+    target = _cache_dir() / name
+    if not target.is_file():             # to be compiled: into a cache that can be written
+        target = writable(target.parent, "XDG_CACHE_HOME") / name
     if target.is_file():
         return target
-    target.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=target.parent) as temp:
         output = Path(temp) / target.name
         command = [_compiler(), "-shared", "-fPIC", "-O2", "-Wall", "-fvisibility=hidden", "-o", str(output),

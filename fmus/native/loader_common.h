@@ -679,6 +679,9 @@ static fmi2Status core_deserialize(Core *c, const char *call, const fmi2Byte byt
     double time;
     void *read = NULL;
     if (bytes == NULL || state == NULL) return refuse(c, "%s: NULL argument", call);
+    if (size > OBSFMU_MAX_STATE_BYTES)
+        return refuse(c, "%s: %zu bytes; an obsfmu FMU state has at most %zu (64 MiB): refused, nothing read", call,
+                      size, OBSFMU_MAX_STATE_BYTES);
     fmi2Status status = c->bridge->deSerializeFMUstate(c->inner, bytes, size, &read);
     if (status >= fmi2Error || read == NULL) return after(c, status >= fmi2Error ? status : fmi2Error);
     fmi2Status checked = core_machine(c, call, read, &bit, &time);

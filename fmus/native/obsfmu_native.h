@@ -24,6 +24,9 @@
 #define OBSFMU_STARTS "obsfmu_start.txt" /* start values of an exported copy (loader_common.h) */
 #define OBSFMU_BRIDGE_SYMBOL "obsfmu_bridge"
 #define OBSFMU_BRIDGE_ABI 4
+/* The largest serialized FMU state read (fmi2DeSerializeFMUstate, fmi3DeserializeFMUState): refused beyond it
+ * before a byte is copied.  = fmus.runtime.state_format.MAX_STATE_BYTES (tests/faults/test_faults_inputs.py). */
+#define OBSFMU_MAX_STATE_BYTES ((size_t)64 << 20)
 
 /* What the loader keeps in an FMU state (one serialized format: the slave's, fmus/runtime/state_format.py).
  * The loader hands `fmi` and `state` to the slave's getFMUstate; machineOf() gives them back from any

@@ -24,6 +24,10 @@ A value is a one-byte tag and its content:
       ndim dimensions u64, then the elements in C order
 ==== ===================================================================================
 
+A state is at most :data:`MAX_STATE_BYTES` (64 MiB; the native binary refuses a larger one before copying it,
+``OBSFMU_MAX_STATE_BYTES``): a larger one is refused before anything is read, the checksum is tested before
+any of the payload is decoded, and neither copies the bytes.
+
 Decoding is total: any bytes give either the data or :class:`StateFormatError` with the
 reason.  Every length and count is checked against the bytes that remain before anything is
 allocated, nesting is limited, and nothing in the format can name a type, a module or a
@@ -38,11 +42,14 @@ import struct
 
 import numpy as np
 
-__all__ = ["StateFormatError", "FORMAT_VERSION", "MAGIC", "pack", "unpack", "encode", "decode"]
+__all__ = ["StateFormatError", "FORMAT_VERSION", "MAGIC", "MAX_STATE_BYTES", "pack", "unpack", "encode", "decode"]
 
 MAGIC = b"OBSFMUst"
 #: 2: the native binary's fields and the slave's "initialized" are part of the state
 FORMAT_VERSION = 2
+#: the largest state written or read (the obsfmu states are of kilobytes: fixed layouts, designs of at most 200
+#: states, inputs and outputs); = OBSFMU_MAX_STATE_BYTES of fmus/native/obsfmu_native.h
+MAX_STATE_BYTES = 64 << 20
 _HEADER = struct.Struct("<8sHHIQ")
 _DIGEST = 32
 _MAX_IDENTITY = 4096
@@ -63,12 +70,16 @@ def pack(identity: str, tree) -> bytes:
     ident = identity.encode("utf-8")
     payload = encode(tree)
     header = _HEADER.pack(MAGIC, FORMAT_VERSION, 0, len(ident), len(payload))
+    if len(header) + _DIGEST + len(ident) + len(payload) > MAX_STATE_BYTES:
+        raise StateFormatError(_too_large(len(header) + _DIGEST + len(ident) + len(payload)))
     return header + hashlib.sha256(header + ident + payload).digest() + ident + payload
 
 
 def unpack(data: bytes, identity: str):
     """The tree in ``data``, a state packed for ``identity``; :class:`StateFormatError` otherwise."""
-    data = bytes(data)
+    if len(data) > MAX_STATE_BYTES:
+        raise StateFormatError(_too_large(len(data)) + ": refused before reading it")
+    data = memoryview(data).cast("B")               # no copy: slices of it are views
     start = _HEADER.size + _DIGEST
     if len(data) < start:
         raise StateFormatError(f"truncated: {len(data)} bytes, an FMU state has at least {start}")
@@ -82,16 +93,21 @@ def unpack(data: bytes, identity: str):
     if len(data) != start + ident_size + payload_size:
         raise StateFormatError(f"{len(data)} bytes, the header announces {start + ident_size + payload_size} "
                                f"(truncated or extended)")
-    ident, payload = data[start:start + ident_size], data[start + ident_size:]
-    if hashlib.sha256(data[:_HEADER.size] + ident + payload).digest() != data[_HEADER.size:start]:
+    digest = hashlib.sha256(data[:_HEADER.size])
+    digest.update(data[start:])                      # identity + payload
+    if digest.digest() != data[_HEADER.size:start]:
         raise StateFormatError("checksum mismatch: the state bytes are damaged")
     try:
-        found = ident.decode("utf-8")
+        found = bytes(data[start:start + ident_size]).decode("utf-8")
     except UnicodeDecodeError:
         raise StateFormatError("damaged identity") from None
     if found != identity:
         raise StateFormatError(f"this state belongs to another FMU ({found!r}), not to {identity!r}")
-    return decode(payload)
+    return decode(data[start + ident_size:])
+
+
+def _too_large(size: int) -> str:
+    return f"{size} bytes; an obsfmu FMU state has at most {MAX_STATE_BYTES} (64 MiB, MAX_STATE_BYTES)"
 
 
 # -------------------------------------------------------------------------------------- payload

@@ -15,6 +15,7 @@ advances it step by step.  It is made of one part per concern, each a file of th
 * :mod:`.step` -- the step of an FMU: ``do_step`` and the native binary's one-call ``step_batched``, one step;
 * :mod:`.state` -- FMU states: get, set, serialize;
 * :mod:`.description` -- modelDescription.xml;
+* :mod:`.versions` -- the numpy and scipy the FMU was built with, against the running ones;
 * :mod:`.common`, :mod:`.numerics`, :mod:`.plan` -- what they share.
 
 Inputs inside a communication step: FMI hands an FMU one input value per step, and holding it over
@@ -37,6 +38,7 @@ from typing import ClassVar
 
 import numpy as np
 from pythonfmu import Fmi2Slave
+from pythonfmu.enums import Fmi2Status
 from pythonfmu.default_experiment import DefaultExperiment
 
 from observers.block import MAGNITUDE_BOUND, Block
@@ -49,6 +51,7 @@ from .description import CAPABILITIES, ModelDescription
 from .numerics import numerics_context
 from .plan import BatchPlan
 from .state import FmuState, FmuStates
+from . import versions
 from .step import Stepping
 from .variables import Variables
 
@@ -103,3 +106,6 @@ class BlockSlave(Variables, BlockOfParameters, Stepping, FmuStates, ModelDescrip
         self._output_plans: dict[tuple, np.ndarray | None] = {}   # fmi2GetReal's vrs -> positions (None: not all outputs)
         self._flat: tuple[dict | None, np.ndarray] = (None, np.zeros(0))   # (outputs cache, its flat vector)
         self._register_variables()
+        mismatch = versions.note(Path(self.resources), definition.model_name)
+        if mismatch:
+            self.log(mismatch, Fmi2Status.warning)

@@ -196,7 +196,10 @@ class FmuStates:
     def serialize_fmu_state(self, state) -> bytes:
         """The bytes of ``state`` (:mod:`fmus.runtime.state_format`): the one serialized form of an FMU state."""
         state = self._own(state)
-        return pack(state.identity, plain(state.tree))
+        try:
+            return pack(state.identity, plain(state.tree))
+        except StateFormatError as exc:           # beyond MAX_STATE_BYTES: not written, nothing changed
+            raise Refused(str(exc)) from None
 
     def deserialize_fmu_state(self, data: bytes) -> FmuState:
         """An FMU state from bytes of :meth:`serialize_fmu_state`; anything else is refused
