@@ -118,6 +118,17 @@ def matrix_text(matrix) -> str:
     return "[" + "; ".join(", ".join(f"{v:.6g}" for v in row) for row in rows) + "]"
 
 
+def _checked_gain(section: str, table: dict, model, gain: str, shape, designer, closed_loop, loop_text: str):
+    """The gain of ``table`` (designed or given) with the poles of its closed loop: Hurwitz always, and a
+    bounded transient for designed poles (:func:`fmus.config.require_bounded_transient`)."""
+    G, poles = design_gain(section, table, model, gain, shape, designer)
+    loop = closed_loop(G)
+    require_hurwitz(f"{section}.{gain} ({loop_text})", loop)
+    if poles is not None:
+        require_bounded_transient(f"{section}.poles", loop)
+    return G, np.linalg.eigvals(loop) if poles is None else poles
+
+
 def _define_observer(model_name: str, values: dict, context: Context) -> list:
     model, units = _plant(values, context, "luenberger observer")
     section = context.prefix.rstrip(".")
@@ -125,12 +136,9 @@ def _define_observer(model_name: str, values: dict, context: Context) -> list:
         raise ParameterError(f"{context.prefix}plant: the pair (A, C) of {values['plant']!r} is not observable; "
                              "no observer can reconstruct the state")
     table = _table(values, ("poles", "t_settle", "shift", "form", "N"))
-    N, poles = design_gain(section, table, model, "N", (model.n, model.p),
-                     lambda p, name: observer_gain(model.A, model.C, p, name))
-    require_hurwitz(f"{section}.N (A - N C)", model.A - N @ model.C)
-    if poles is not None:
-        require_bounded_transient(f"{section}.poles", model.A - N @ model.C)
-    poles = np.linalg.eigvals(model.A - N @ model.C) if poles is None else poles
+    N, poles = _checked_gain(section, table, model, "N", (model.n, model.p),
+                             lambda p, name: observer_gain(model.A, model.C, p, name),
+                             lambda N: model.A - N @ model.C, "A - N C")
     x_hat0 = np.zeros(model.n) if values["x_hat0"] is None else values["x_hat0"]
     if np.size(x_hat0) != model.n:
         raise ParameterError(f"{context.prefix}x_hat0: expected {model.n} entries, got {np.size(x_hat0)}")
@@ -154,12 +162,9 @@ def _define_feedback(model_name: str, values: dict, context: Context) -> list:
         raise ParameterError(f"{context.prefix}plant: the pair (A, B) of {values['plant']!r} is not controllable; "
                              "state feedback cannot place the poles")
     table = _table(values, ("poles", "t_settle", "shift", "form", "K"))
-    K, poles = design_gain(section, table, model, "K", (model.m, model.n),
-                           lambda p, name: place(model.A, model.B, p, name))
-    require_hurwitz(f"{section}.K (A - B K)", model.A - model.B @ K)
-    if poles is not None:
-        require_bounded_transient(f"{section}.poles", model.A - model.B @ K)
-    poles = np.linalg.eigvals(model.A - model.B @ K) if poles is None else poles
+    K, poles = _checked_gain(section, table, model, "K", (model.m, model.n),
+                             lambda p, name: place(model.A, model.B, p, name),
+                             lambda K: model.A - model.B @ K, "A - B K")
     context.notes.append(f"{section}: K = {matrix_text(K)}; eig(A - B K) = [{poles_text(poles)}]")
     return [feedback_definition(model_name, K, units, values["description"])]
 
