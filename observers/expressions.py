@@ -70,15 +70,30 @@ class Source:
 @dataclass(frozen=True)
 class Names:
     """What an expression may name: the sizes of ``x``, ``u``, ``p`` (0: absent) and the named
-    parameters (name -> 1-based index into ``p``)."""
+    parameters (name -> 1-based index into ``p``).
+
+    ``labels`` renames a vector for the user (``{"x": "y"}``: the expressions of ``f(y, t)`` write
+    ``y[1]`` for what the evaluator receives as ``x``); ``bare`` lists the labels of one-entry vectors
+    that may also be written without an index (``sin(y)``).
+    """
     x: int = 0
     u: int = 0
     p: int = 0
     parameters: Mapping[str, int] = field(default_factory=dict)
     time: bool = True
+    labels: Mapping[str, str] = field(default_factory=dict)
+    bare: frozenset = frozenset()
+
+    def label(self, vector: str) -> str:
+        """What the expressions call the vector ``vector`` (``x``, ``u`` or ``p``)."""
+        return self.labels.get(vector, vector)
+
+    def vector(self, label: str) -> str | None:
+        """The vector (``x``, ``u``, ``p``) an expression names ``label``, if it is present."""
+        return next((v for v in VECTORS if getattr(self, v) and self.label(v) == label), None)
 
     def allowed(self) -> list[str]:
-        names = [v for v in VECTORS if getattr(self, v)] + (["t"] if self.time else [])
+        names = [self.label(v) for v in VECTORS if getattr(self, v)] + (["t"] if self.time else [])
         return names + sorted(self.parameters) + sorted(CONSTANTS)
 
 
@@ -215,6 +230,10 @@ def _token(node: ast.AST, text: str) -> str:
     return segment if len(segment) <= 40 else segment[:37] + "..."
 
 
+_GETTERS = {"x": lambda i: lambda t, x, u, p: x[i], "u": lambda i: lambda t, x, u, p: u[i],
+            "p": lambda i: lambda t, x, u, p: p[i]}
+
+
 class _Compiler:
     """Checks one parsed expression against the grammar and builds its closure tree."""
 
@@ -255,26 +274,29 @@ class _Compiler:
         if name in CONSTANTS:
             value = CONSTANTS[name]
             return lambda t, x, u, p: value
-        if name in VECTORS and getattr(names, name):
-            raise self.refuse(node, f"{name} is a vector: index it, {name}[1] to {name}[{getattr(names, name)}]")
+        vector = names.vector(name)
+        if vector is not None and name in names.bare:
+            self.uses.add(vector)
+            return _GETTERS[vector](0)
+        if vector is not None:
+            raise self.refuse(node, f"{name} is a vector: index it, {name}[1] to {name}[{getattr(names, vector)}]")
         raise self.refuse(node, f"unknown name (allowed: {', '.join(self.names.allowed())})")
 
     def _Subscript(self, node: ast.Subscript, depth: int) -> Evaluator:
-        vector = node.value.id if isinstance(node.value, ast.Name) else None
-        size = getattr(self.names, vector, 0) if vector in VECTORS else 0
+        label = node.value.id if isinstance(node.value, ast.Name) else None
+        vector = self.names.vector(label) if label is not None else None
+        size = getattr(self.names, vector) if vector is not None else 0
         if not size:
-            raise self.refuse(node, f"only {', '.join(v for v in VECTORS if getattr(self.names, v))} can be indexed")
+            indexable = ", ".join(self.names.label(v) for v in VECTORS if getattr(self.names, v))
+            raise self.refuse(node, f"only {indexable} can be indexed")
         index = node.slice
         if not (isinstance(index, ast.Constant) and type(index.value) is int):
             raise self.refuse(node, "an index must be a whole number")
         if not 1 <= index.value <= size:
-            raise self.refuse(node, f"index out of range: {vector} has {size} entries, {vector}[1] to {vector}[{size}]"
+            raise self.refuse(node, f"index out of range: {label} has {size} entries, {label}[1] to {label}[{size}]"
                               + (" (indices start at 1, as in the FMU's variable names)" if index.value == 0 else ""))
-        position = index.value - 1
         self.uses.add(vector)
-        getter = {"x": lambda t, x, u, p: x[position], "u": lambda t, x, u, p: u[position],
-                  "p": lambda t, x, u, p: p[position]}
-        return getter[vector]
+        return _GETTERS[vector](index.value - 1)
 
     def _UnaryOp(self, node: ast.UnaryOp, depth: int) -> Evaluator:
         operand = self.build(node.operand, depth)

@@ -34,8 +34,12 @@ def reference(function: Callable) -> str:
     return f"{portable_name(module)}:{name}"
 
 
-def resolve(ref: str, what: str = "function") -> Callable:
-    """Import ``module`` and return its attribute ``function`` for ``ref = "module:function"``."""
+def resolve(ref, what: str = "function") -> Callable:
+    """Import ``module`` and return its attribute ``function`` for ``ref = "module:function"``; an
+    expression function's option (:mod:`fmus.runtime.functions`) is compiled instead."""
+    from .functions import compiled, is_expression_function
+    if is_expression_function(ref):
+        return compiled(ref, what)
     if not isinstance(ref, str) or not _REFERENCE.match(ref):
         raise ParameterError(f"{what}: {ref!r} is not a 'module:function' reference")
     module_name, name = ref.split(":")

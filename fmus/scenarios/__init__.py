@@ -81,6 +81,8 @@ class Scenario:
     claim: str = ""
     #: what ``obsfmu sweep`` measures of a sample (the scenario's ``measures.py``), or None: give the metrics
     measure: Measure | None = None
+    #: the system file that defines it (``obsfmu show SCENARIO`` prints it), or None
+    system_file: Path | None = None
 
 
 def _registry() -> dict[str, Scenario]:

@@ -117,14 +117,18 @@ def build_definitions(definitions: list, out: Path, fmi_version: int = 2, standa
 
 
 def show(args) -> int:
-    """``obsfmu show --fields`` (the field reference, markdown) or ``obsfmu show --config FILE`` (checked:
-    its components, ports, connections and designed gains)."""
+    """``obsfmu show --fields`` (the field reference, markdown), ``obsfmu show SCENARIO`` (the system file
+    that defines the scenario, as it is) or ``obsfmu show --config FILE`` (checked: its components, ports,
+    connections and designed gains)."""
     from . import field_reference, load_system
     if args.fields:
         sys.stdout.write(field_reference())
         return 0
+    if args.scenario:
+        sys.stdout.write(_scenario_file(args.scenario).read_text(encoding="utf-8"))
+        return 0
     if not args.config:
-        raise ParameterError("show: give --fields or --config FILE.toml")
+        raise ParameterError("show: give SCENARIO, --fields or --config FILE.toml")
     spec = load_system(args.config)
     print(f"{spec.name}: {spec.description}")
     for instance, component in spec.components.items():
@@ -139,8 +143,20 @@ def show(args) -> int:
     return 0
 
 
+def _scenario_file(name: str) -> Path:
+    """The system file of the paper scenario ``name``."""
+    from .. import scenarios
+    scenario = scenarios.get(name)
+    if scenario.system_file is None:
+        raise ParameterError(f"SCENARIO: {name!r} is not defined by a system file")
+    return scenario.system_file
+
+
 def configure_show(parser) -> None:
     """The options of ``obsfmu show``."""
+    parser.add_argument("scenario", nargs="?", metavar="SCENARIO",
+                        help="print the system file of a paper scenario (obsfmu list): a working start for "
+                        "your own (obsfmu show ship > my.toml)")
     parser.add_argument("--fields", action="store_true",
                         help="print the system file's field reference (markdown, docs/system-file-reference.md)")
     parser.add_argument("--config", metavar="FILE.toml", help="check a system file and print its components, "

@@ -55,6 +55,8 @@ EXPERIMENT_FIELDS = (
           "--output-interval overrides it)", None,
           "(time unit)", "0.01"),
     Field("tolerance", "number", "adaptive master: error per unit step on every output", 1e-6, "", "1e-6"),
+    Field("ramp", "integer", "the first step split into step/2^ramp, ..., step/2 (a fast initial transient)", 0,
+          example="6", maximum=30),
 )
 COMPARE_FIELDS = (
     Field("estimate", "string", "an output port: the estimate", example='"observer.x_hat"'),

@@ -48,7 +48,13 @@ class SystemSpec:
     reference: Path | None = None                     #: a CSV of the same columns to compare with
 
     def definitions(self) -> list:
-        return [d for spec in self.components.values() for d in spec.definitions]
+        """Every component's FMU definitions; one without a DefaultExperiment gets the file's ``[experiment]``."""
+        from dataclasses import replace
+
+        from ..runtime.definition import experiment
+        default = experiment(self.experiment["stop_time"], self.experiment["step"])
+        return [d if d.default_experiment is not None else replace(d, default_experiment=default)
+                for spec in self.components.values() for d in spec.definitions]
 
     def scenario(self):
         """The :class:`~fmus.scenarios.Scenario` of this system: run, export, sweep and report work on it.
@@ -71,7 +77,8 @@ class SystemSpec:
             order=experiment["master"], coupling=experiment["coupling"], summarize=self.summarize,
             plot=self.plot if self.compares else None, time_unit=self.time_unit,
             output_interval=experiment["output_interval"], measure=self.measure(), tolerance=experiment["tolerance"],
-            claim=f"No paper: the user's system file {Path(self.path).name}.")
+            ramp=experiment["ramp"], claim=f"No paper: the user's system file {Path(self.path).name}.",
+            system_file=Path(self.path) if self.path else None)
 
     def measure(self):
         """What ``obsfmu sweep`` measures: the largest convergence time and final error of the comparisons."""

@@ -62,20 +62,25 @@ def _vector(where: str, value, limit: int) -> np.ndarray:
     return np.array([_number(f"{where}[{i}]", v) for i, v in enumerate(value, start=1)], dtype=float)
 
 
-def _matrix(where: str, value) -> np.ndarray:
+def _rows(where: str, value, entries: str = "numbers") -> None:
+    """``value`` is a non-empty list of rows of one length, within the limits."""
     if not isinstance(value, list) or not value:
-        raise ParameterError(f"{where}: expected a list of rows (lists of numbers), got {_shown(value)}")
+        raise ParameterError(f"{where}: expected a list of rows (lists of {entries}), got {_shown(value)}")
     if len(value) > MAX_DIMENSION:
         raise ParameterError(f"{where}: {len(value)} rows, more than the limit of {MAX_DIMENSION}")
     for i, row in enumerate(value, start=1):
         if not isinstance(row, list):
-            raise ParameterError(f"{where}: row {i} is {_shown(row)}, expected a list of numbers")
+            raise ParameterError(f"{where}: row {i} is {_shown(row)}, expected a list of {entries}")
         if len(row) > MAX_DIMENSION:
             raise ParameterError(f"{where}: row {i} has {len(row)} entries, more than the limit of {MAX_DIMENSION}")
         if len(row) != len(value[0]):
             raise ParameterError(f"{where}: row {i} has {_entries(len(row))}, row 1 has {len(value[0])}")
     if not value[0]:
         raise ParameterError(f"{where}: the rows are empty")
+
+
+def _matrix(where: str, value) -> np.ndarray:
+    _rows(where, value)
     return np.array([[_number(f"{where}[{i}][{j}]", v) for j, v in enumerate(row, start=1)]
                      for i, row in enumerate(value, start=1)], dtype=float)
 
@@ -123,6 +128,27 @@ def _expressions(where: str, value) -> list[str]:
     return [check_text(f"{where}[{i}]", v, lines=True, limit=MAX_LENGTH) for i, v in enumerate(value, start=1)]
 
 
+def _expression(where: str, value):
+    """One expression: a text (checked as text; the kind compiles it) or a finite number."""
+    if _is_number(value):
+        return _number(where, value)
+    return check_text(where, value, lines=True, limit=MAX_LENGTH)
+
+
+def _expression_vector(where: str, value) -> list:
+    if not isinstance(value, list) or not value:
+        raise ParameterError(f"{where}: expected a list of expressions (texts) or numbers, got {_shown(value)}")
+    if len(value) > MAX_DIMENSION:
+        raise ParameterError(f"{where}: {len(value)} entries, more than the limit of {MAX_DIMENSION}")
+    return [_expression(f"{where}[{i}]", v) for i, v in enumerate(value, start=1)]
+
+
+def _expression_matrix(where: str, value) -> list:
+    _rows(where, value, "expressions or numbers")
+    return [[_expression(f"{where}[{i}][{j}]", v) for j, v in enumerate(row, start=1)]
+            for i, row in enumerate(value, start=1)]
+
+
 def _integer(where: str, value) -> int:
     if isinstance(value, bool) or not isinstance(value, int):
         raise ParameterError(f"{where}: expected a whole number, got {_shown(value)}")
@@ -155,6 +181,9 @@ _CHECKS = {
     "poles": _poles,
     "units": _units,
     "expressions": _expressions,
+    "expression": _expression,
+    "expression-vector": _expression_vector,
+    "expression-matrix": _expression_matrix,
     "table": lambda where, value: _table(where, value, _number),
     "unit-table": lambda where, value: _table(where, value, lambda w, v: check_text(w, v, limit=100)),
 }
