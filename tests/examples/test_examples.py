@@ -302,7 +302,7 @@ def test_the_noisy_run_has_the_noise_of_the_file(chirp_noisy):
 
 def test_the_noisy_estimate_error_is_the_observer_noise_gain(chirp_noisy, chirp_clean):
     """The error the noise adds (noisy run - noise-free run: the model is linear, the rest cancels) has, over
-    0.5-8 s, the RMS of the noise gain within 15 % (measured ratios 1.00 and 0.98), and the tolerances of the
+    0.5-8 s, the RMS of the noise gain within 15 % (measured ratios 1.01 and 1.01), and the tolerances of the
     file are 4 of those standard deviations (within 5 %)."""
     sigma = noise_gain()
     window = chirp_noisy.time >= 0.5
@@ -317,7 +317,7 @@ def test_the_noisy_estimate_error_is_the_observer_noise_gain(chirp_noisy, chirp_
 
 
 def test_the_noisy_estimate_converges_within_its_tolerance(chirp_noisy, chirp_clean):
-    """Both estimates are within 4 noise standard deviations by 0.1 s and stay there (measured 0.053 s and
+    """Both estimates are within 4 noise standard deviations by 0.1 s and stay there (measured 0.057 s and
     0.075 s), as in the noise-free run (within 10 ms: the noise moves the last crossing)."""
     for i in (1, 2):
         noisy, clean = chirp_noisy.convergence(f"observer.x_hat[{i}]"), chirp_clean.convergence(f"observer.x_hat[{i}]")
