@@ -46,6 +46,16 @@ def parser() -> argparse.ArgumentParser:
     return main_parser
 
 
+def _silence_stdout() -> None:
+    """Point standard output at the null device, so that the interpreter's last flush cannot fail again."""
+    import os
+    try:
+        null = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(null, sys.stdout.fileno())
+    except (OSError, ValueError):
+        pass
+
+
 def main(argv: list[str] | None = None) -> int:
     """``obsfmu ...``; returns the exit code (2: a user mistake, 128 + the signal: interrupted)."""
     previous = install_handlers(raise_terminated, tuple(s for s in STOP_SIGNALS if s != signal.SIGINT))
@@ -60,6 +70,9 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt as exc:  # Ctrl-C, or a Terminated
         print(f"\nobsfmu: interrupted ({exc or 'SIGINT'})", file=sys.stderr)
         return interrupted_status(exc)
+    except BrokenPipeError:  # the reader went away (obsfmu show --fields | head -1): quiet, as SIGPIPE would end it
+        _silence_stdout()
+        return 128 + signal.SIGPIPE
     except OSError as exc:  # a refusal of the file system not checked beforehand: still one line
         where = f"{exc.filename}: " if exc.filename else ""
         print(f"obsfmu: error: {where}{exc.strerror or exc}", file=sys.stderr)

@@ -83,6 +83,8 @@ class Scenario:
     measure: Measure | None = None
     #: the system file that defines it (``obsfmu show SCENARIO`` prints it), or None
     system_file: Path | None = None
+    #: ``(|lambda|, what)``: the fastest rate of its dynamics and signals (a system file's), or None
+    fastest: tuple[float, str] | None = None
 
 
 def _registry() -> dict[str, Scenario]:
@@ -372,6 +374,28 @@ def check_step(scenario: Scenario, stop_time: float, step: float, order: str, co
               f"{scenario.step:g} {unit}: with {coupling} coupling the coupling error grows like h^{power}, to about "
               f"{ratio ** power:.2g} times the error at the default (README: Choosing the communication step)",
               file=sys.stderr)
+    if order != "adaptive" and scenario.fastest is not None:
+        _check_rate(scenario, step, coupling)
+
+
+#: the relative coupling error above which a step is worth a warning
+COUPLING_ERROR_WARNING = 1e-2
+
+
+def _check_rate(scenario: Scenario, step: float, coupling: str) -> None:
+    """One line on stderr when ``step`` is long against the fastest rate ``|lambda|`` of the system: measured
+    on ship (README; an unstable plant, so a pessimistic case), the coupling error is about
+    ``(h |lambda|)^2 / 3`` with linear coupling and ``h |lambda| / 3`` with held inputs, relative to the
+    signals; a stable system often loses much less (the pendulum example: 6e-4 at h |lambda| = 0.6)."""
+    rate, what = scenario.fastest
+    product, unit = step * rate, scenario.time_unit
+    expected = product ** 2 / 3 if coupling == "linear" else product / 3
+    if expected > COUPLING_ERROR_WARNING:
+        advised = (3 * COUPLING_ERROR_WARNING) ** (0.5 if coupling == "linear" else 1) / rate
+        print(f"obsfmu: warning: step {step:g} {unit}: h |lambda| = {product:.3g} for the fastest dynamics "
+              f"({what}, |lambda| = {rate:.3g} 1/{unit}); with {coupling} coupling expect a coupling error of up to about "
+              f"{expected:.2g} relative to the signals (the ship's, unstable, lost that much); a step of at most {advised:.2g} {unit} keeps it below "
+              f"{COUPLING_ERROR_WARNING:g} (README: Choosing the communication step)", file=sys.stderr)
 
 
 def _print_warnings(session: Session) -> None:

@@ -64,6 +64,8 @@ def _define_lti(model_name: str, values: dict, context: Context) -> list:
         units = _expanded_units(values, model)
     except ParameterError as exc:
         raise ParameterError(f"{context.prefix}{exc}") from None
+    if not model.discrete:
+        context.rate(np.linalg.eigvals(model.A), "A: eig(A)")
     return [plant_definition(model_name, model, x0, units, values["description"])]
 
 
@@ -143,6 +145,7 @@ def _define_observer(model_name: str, values: dict, context: Context) -> list:
     if np.size(x_hat0) != model.n:
         raise ParameterError(f"{context.prefix}x_hat0: expected {model.n} entries, got {np.size(x_hat0)}")
     context.notes.append(f"{section}: N = {matrix_text(N)}; eig(A - N C) = [{poles_text(poles)}]")
+    context.rate(poles, "eig(A - N C)")
     return [observer_definition(model_name, model, N, x_hat0, units, values["description"], poles)]
 
 
@@ -166,6 +169,7 @@ def _define_feedback(model_name: str, values: dict, context: Context) -> list:
                              lambda p, name: place(model.A, model.B, p, name),
                              lambda K: model.A - model.B @ K, "A - B K")
     context.notes.append(f"{section}: K = {matrix_text(K)}; eig(A - B K) = [{poles_text(poles)}]")
+    context.rate(poles, "eig(A - B K)")
     return [feedback_definition(model_name, K, units, values["description"])]
 
 

@@ -261,7 +261,8 @@ def _parse(text: str, path: str, folder: Path, locator: Locator) -> SystemSpec:
     compares = check_compares(_compares(data), components)
     reference = data.get("report", {}).get("reference")
     return SystemSpec(top["name"], top["description"], top["time_unit"], components, connections, values,
-                      experiment, compares, context.notes, path, None if reference is None else folder / reference)
+                      experiment, compares, context.notes, path, None if reference is None else folder / reference,
+                      max(context.rates, default=None))
 
 
 def load_system(path: Path | str) -> SystemSpec:

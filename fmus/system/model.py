@@ -46,6 +46,7 @@ class SystemSpec:
     notes: list[str] = field(default_factory=list)   #: the designed gains and poles
     path: str = ""
     reference: Path | None = None                     #: a CSV of the same columns to compare with
+    fastest: tuple[float, str] | None = None          #: the fastest rate of its dynamics and signals, and whose
 
     def definitions(self) -> list:
         """Every component's FMU definitions; one without a DefaultExperiment gets the file's ``[experiment]``."""
@@ -78,7 +79,7 @@ class SystemSpec:
             plot=self.plot if self.compares else None, time_unit=self.time_unit,
             output_interval=experiment["output_interval"], measure=self.measure(), tolerance=experiment["tolerance"],
             ramp=experiment["ramp"], claim=f"No paper: the user's system file {Path(self.path).name}.",
-            system_file=Path(self.path) if self.path else None)
+            system_file=Path(self.path) if self.path else None, fastest=self.fastest)
 
     def measure(self):
         """What ``obsfmu sweep`` measures: the largest convergence time and final error of the comparisons."""
@@ -138,14 +139,16 @@ class SystemSpec:
         """Truth vs estimate per compared entry and the errors (log scale), with the FMUs' units."""
         from ..plotting import Curve, Panel, figure
         panels, errors = [], []
+        key = 0                           # one colour per compared quantity, across every comparison
         for compare in self.compares:
             estimate, truth = self._pairs(result, compare)
             for j, (e_name, t_name) in enumerate(zip(compare["estimate_columns"], compare["truth_columns"])):
                 unit = result.unit(t_name)
-                panels.append(Panel(t_name, [Curve(t_name, result.time, truth[:, j], unit, "true", j),
-                                             Curve(e_name, result.time, estimate[:, j], unit, "estimate", j)]))
+                panels.append(Panel(t_name, [Curve(t_name, result.time, truth[:, j], unit, "true", key),
+                                             Curve(e_name, result.time, estimate[:, j], unit, "estimate", key)]))
                 errors.append(Curve(f"{t_name} - {e_name}", result.time, truth[:, j] - estimate[:, j], unit,
-                                    "error", j))
+                                    "error", key))
+                key += 1
             errors.append(Curve(f"tolerance {compare['tolerance']:g}", result.time,
                                 np.full(result.time.shape, compare["tolerance"]), role="limit"))
         panels.append(Panel("|error|", errors, log=True))

@@ -16,6 +16,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 __all__ = ["Field", "ComponentType", "Context", "REQUIRED", "TYPES", "register", "FIELD_TYPES", "COMMON_FIELDS"]
 
 
@@ -77,7 +79,8 @@ class Context:
     ``prefix`` names the component in messages (``components.plant.``); ``name`` is the system's;
     ``others`` maps every component defined before this one to its ``(kind, values)``; ``folder`` is the
     system file's folder (relative paths are read from there); ``notes`` collects what the build prints
-    (designed gains and poles).
+    (designed gains and poles); ``rates`` the fastest rates of the components' dynamics and signals
+    (``(|lambda| in 1/time unit, what)``), against which every run's step is checked.
     """
 
     prefix: str
@@ -85,6 +88,13 @@ class Context:
     others: dict[str, tuple[str, dict]] = field(default_factory=dict)
     folder: Path = Path(".")
     notes: list[str] = field(default_factory=list)
+    rates: list[tuple[float, str]] = field(default_factory=list)
+
+    def rate(self, eigenvalues, what: str) -> None:
+        """Record the largest ``|eigenvalue|`` (or angular frequency) of ``eigenvalues`` as the rate of ``what``."""
+        values = np.abs(np.atleast_1d(np.asarray(eigenvalues, dtype=complex)))
+        if values.size and np.all(np.isfinite(values)) and values.max() > 0:
+            self.rates.append((float(values.max()), f"{self.prefix}{what}"))
 
 
 @dataclass(frozen=True)

@@ -7,6 +7,8 @@ the signal once; the numeric ones are FMU parameters (``--set``/``--vary`` work 
 
 from __future__ import annotations
 
+import numpy as np
+
 from ..runtime.kinds import noise, sources
 from .schema import Context, Field, register
 from .values import MAX_DIMENSION
@@ -64,6 +66,10 @@ _SOURCES = {
 }
 
 
+#: the fields that set how fast a source's signal changes (interpolated over a step by linear coupling)
+_FREQUENCIES = {"sine": ("frequency_hz",), "multisine": ("frequencies_hz",), "chirp": ("f0_hz", "f1_hz")}
+
+
 def _source_define(family: str):
     function = getattr(sources, f"{family}_source_definition")
 
@@ -73,6 +79,10 @@ def _source_define(family: str):
             arguments["path"] = context.folder / arguments["path"]
         if family == "multisine" and arguments["phases"] is None:
             del arguments["phases"]
+        frequencies = [arguments[key] for key in _FREQUENCIES.get(family, ())]
+        if frequencies:
+            context.rate(2 * np.pi * np.max(np.abs(np.concatenate([np.atleast_1d(f) for f in frequencies]))),
+                         f"{' and '.join(_FREQUENCIES[family])} (2 pi f)")
         return [function(model_name, **arguments, description=values["description"])]
     return define
 

@@ -330,3 +330,39 @@ def test_a_system_file_read_from_a_pipe(tmp_path):
     out, err = process.communicate(timeout=600)
     assert process.returncode == 0, err
     assert out.startswith("dcmotor: 2000 steps to t = 2 s"), out
+
+
+def test_the_figure_gives_every_compared_quantity_its_own_colour(monkeypatch, tmp_path):
+    """Two more [[report.compare]] tables of one entry each: every error curve its own colour."""
+    import fmus.plotting
+    from fmus.result import Result
+    from fmus.system import load_system
+    path = tmp_path / "two.toml"
+    path.write_text(motor_file() + '\n[[report.compare]]\nestimate = "observer.x_hat[1]"\ntruth = "plant.x[1]"\n'
+                    '\n[[report.compare]]\nestimate = "observer.x_hat[3]"\ntruth = "plant.x[3]"\n')
+    spec = load_system(path)
+    captured = {}
+    monkeypatch.setattr(fmus.plotting, "figure", lambda path, title, panels, unit: captured.setdefault("p", panels))
+    columns = [f"{port}[{i}]" for port in ("plant.x", "observer.x_hat") for i in (1, 2, 3)]
+    spec.plot(Result(np.linspace(0, 1, 5), columns, np.ones((5, 6))), tmp_path / "f.png")
+    keys = [curve.key for curve in captured["p"][-1].curves if curve.role == "error"]
+    assert len(keys) == len(spec.compares[0]["estimate_columns"]) + 2 and len(set(keys)) == len(keys)
+
+
+def test_a_file_step_long_against_its_fastest_dynamics_warns_naming_them(capsys):
+    """The pendulum example at 2e-2 s instead of its 1e-3 s (observer poles down to -30 1/s): one line naming the
+    observer's poles, the expected error and the step that keeps it small; the file's own step says nothing."""
+    from fmus.scenarios import check_step
+    from fmus.system import load_system
+    scenario = load_system(ROOT / "examples" / "pendulum.toml").scenario()
+    rate, what = scenario.fastest
+    assert what == "components.observer.eig(A - N C)" and rate == pytest.approx(30.0)
+    check_step(scenario, stop_time=10.0, step=scenario.step, order="gauss-seidel", coupling="linear")
+    assert capsys.readouterr().err == ""
+    check_step(scenario, stop_time=10.0, step=2e-2, order="gauss-seidel", coupling="linear")
+    (line,) = [line for line in capsys.readouterr().err.splitlines() if "h |lambda|" in line]
+    assert line.startswith("obsfmu: warning: step 0.02 s: h |lambda| = 0.6 for the fastest dynamics "
+                           "(components.observer.eig(A - N C), |lambda| = 30 1/s)")
+    assert "a step of at most 0.0058 s keeps it below 0.01" in line
+    check_step(scenario, stop_time=10.0, step=2e-3, order="gauss-seidel", coupling="hold")   # h |lambda| / 3 = 0.02
+    assert "coupling error of up to about 0.02" in capsys.readouterr().err
