@@ -50,7 +50,8 @@ def configure(sweep: argparse.ArgumentParser) -> None:
     sweep.add_argument("--step", type=duration, help="communication step (default: the scenario's), "
                        "same units")
     sweep.add_argument("--master", choices=ORDERS, help="stepping order (default: the scenario's)")
-    sweep.add_argument("--tol", type=float, help="adaptive master: error per unit step (default: the scenario's, 1e-6)")
+    sweep.add_argument("--tol", type=float, help="adaptive master: error per unit step (default: the scenario's, "
+                       "1e-6)")
     sweep.add_argument("--coupling", choices=COUPLINGS, help="inputs inside a step (default: the scenario's)")
     sweep.add_argument("--set", action="append", metavar="INSTANCE.VAR=VALUE",
                        help="a start value fixed for every sample (repeatable)")

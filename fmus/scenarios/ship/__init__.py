@@ -121,8 +121,10 @@ def composite_solution(times, x0=None, x_hat0=None, parameters: dict[str, float]
     size = Ae.shape[0]
     augmented = np.zeros((size + 1, size + 1))
     augmented[:size, :size], augmented[:size, size] = Ae, be
-    closed = loop(parameters) if x0 is None or x_hat0 is None else None
-    xe0 = np.concatenate([closed.x0 if x0 is None else x0, closed.x_hat0 if x_hat0 is None else x_hat0, [1.0]])
+    if x0 is None or x_hat0 is None:
+        closed = loop(parameters)
+        x0, x_hat0 = closed.x0 if x0 is None else x0, closed.x_hat0 if x_hat0 is None else x_hat0
+    xe0 = np.concatenate([x0, x_hat0, [1.0]])
     return np.array([expm(augmented * t) @ xe0 for t in np.asarray(times, dtype=float)])[:, :size]
 
 
