@@ -22,16 +22,16 @@ from fmus.scenarios import ensure_fmus, get, run
 from observers.block import Segment
 from observers.feedback import StateFeedback
 from observers.luenberger import LuenbergerObserver
-from fmus.scenarios.ship import design
+from fmus.scenarios.ship import loop
 from plants.lti import LTIPlant
 
 
 def direct(steps: int, h: float) -> np.ndarray:
-    d = design()
-    plant = LTIPlant(d.model.A, d.model.B, d.model.C, x0=d.x0)
-    observer = LuenbergerObserver(d.model.A, d.model.B, d.model.C, d.N, d.x_hat0)
+    d = loop()                               # the numbers of the scenario's system file
+    plant = LTIPlant(*d.plant, x0=d.x0)
+    observer = LuenbergerObserver(*d.observer[:3], d.N, d.x_hat0, d.observer[3])
     controller = StateFeedback(d.K)
-    r = np.zeros(1)
+    r = d.r
     u = controller.outputs(0.0, {"x_hat": observer.x_hat, "r": r})["u"]
     y = plant.outputs(0.0, {"u": u})["y"]
     u_previous = None

@@ -1,6 +1,7 @@
 """Observer FMUs for the user's own LTI plant, from a small TOML file.
 
-Example (the ship of paper 002, shipped as ``fmus/scenarios/ship/ship.toml``)::
+Example (the ship of paper 002; the scenario ``ship`` itself is a system file,
+``fmus/scenarios/ship/system.toml``; another design: ``examples/nomoto3.toml``)::
 
     name = "ship"                  # FMU names: ship_plant, ship_observer, ship_controller
     description = "..."            # optional

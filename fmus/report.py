@@ -33,7 +33,7 @@ from .claims import CHECKS, holds_over, reference_interval, verdict
 from .metrics import NOT_REACHED
 from .output import replacing
 
-__all__ = ["save_run", "has_run", "load_run", "write_report", "format_metric", "REPORT"]
+__all__ = ["save_run", "has_run", "load_run", "other_runs", "write_report", "format_metric", "REPORT"]
 
 REPORT = "report.html"
 RECORD_VERSION = 1
@@ -264,14 +264,24 @@ def _section(out_dir: Path, record: dict) -> str:
 </section>"""
 
 
+def other_runs(out_dir: Path) -> list[str]:
+    """The names of the usable records in ``out_dir`` that are no paper scenario's (the runs of system
+    files, ``obsfmu report --config FILE``), sorted."""
+    from .scenarios import SCENARIOS
+    return sorted(path.stem for path in Path(out_dir).glob("*.json")
+                  if path.stem not in SCENARIOS and load_run(out_dir, path.stem))
+
+
 def write_report(out_dir: Path, build_dir: Path | None = None, names=None) -> Path:
-    """Write ``out_dir/report.html`` from the records of ``names`` (default: every scenario)."""
+    """Write ``out_dir/report.html`` from the records of ``names`` (default: every paper scenario, then
+    every other run recorded in ``out_dir``: :func:`other_runs`)."""
     from fmpy import __version__ as fmpy_version
 
     from .scenarios import SCENARIOS
     out_dir = Path(out_dir)
-    records = [record for name in (names or SCENARIOS) if (record := load_run(out_dir, name))]
-    missing = [name for name in (names or SCENARIOS) if not load_run(out_dir, name)]
+    names = list(names or [*SCENARIOS, *other_runs(out_dir)])
+    records = [record for name in names if (record := load_run(out_dir, name))]
+    missing = [name for name in names if not load_run(out_dir, name)]
     contents = "\n".join(f'<li><a href="#{_e(r["scenario"])}">{_e(r["scenario"])}</a>: {_e(r["description"])}</li>'
                          for r in records)
     machine = f"{platform.system()} {platform.machine()}, Python {sys.version.split()[0]}, fmpy {fmpy_version}"

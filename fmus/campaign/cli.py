@@ -50,7 +50,8 @@ def configure(sweep: argparse.ArgumentParser) -> None:
     sweep.add_argument("--step", type=duration, help="communication step (default: the scenario's), "
                        "same units")
     sweep.add_argument("--master", choices=ORDERS, help="stepping order (default: the scenario's)")
-    sweep.add_argument("--tol", type=float, help="adaptive master: error per unit step (default 1e-6)")
+    sweep.add_argument("--tol", type=float, help="adaptive master: error per unit step (default: the scenario's, "
+                       "1e-6)")
     sweep.add_argument("--coupling", choices=COUPLINGS, help="inputs inside a step (default: the scenario's)")
     sweep.add_argument("--set", action="append", metavar="INSTANCE.VAR=VALUE",
                        help="a start value fixed for every sample (repeatable)")
@@ -103,7 +104,9 @@ def campaign_from_args(args):
                "coupling": args.coupling, "tolerance": args.tol,
                "time_limit": args.time_limit, "time_metric": args.time_metric, "error_metric": args.error_metric,
                "build_dir": args.build_dir, "vary": _pairs(args.vary, "--vary"), "set": _pairs(args.set, "--set")}
-    from ..system.commands import holds_components
+    from ..system.commands import holds_components, require_rereadable
+    if args.config:
+        require_rereadable(args.config, "sweep")
     if args.config and holds_components(args.config):   # a system file: its scenario
         from ..system.commands import scenario_key
         options["scenario"] = scenario_key(args)

@@ -113,7 +113,7 @@ class Campaign:
     step: float | None = None
     master: str | None = None
     coupling: str | None = None
-    tolerance: float = 1e-6
+    tolerance: float | None = None
     set: dict = field(default_factory=dict)
     time_limit: float = DEFAULT_TIME_LIMIT
     time_metric: str | list | None = None
@@ -204,8 +204,8 @@ class Campaign:
             "order": self.master or scenario.order,
             "coupling": self.coupling or scenario.coupling,
         }
-        if settings["order"] == "adaptive":
-            settings["tolerance"] = float(self.tolerance)
+        if settings["order"] == "adaptive":      # the scenario's (a system file's [experiment] tolerance)
+            settings["tolerance"] = float(scenario.tolerance if self.tolerance is None else self.tolerance)
         elif scenario.ramp:
             settings["ramp"] = scenario.ramp     # its start-up ramp, as 'obsfmu run' (fmus.master.cosimulate)
         samples = self._samples(scenario.name, settings)

@@ -138,13 +138,13 @@ def cmd_report(args) -> int:
 
     out = check_directory("--out", args.out)
     build_dir = check_directory("--build-dir", args.build_dir, writable=False)
-    if args.config:     # the system file's run, then the report of it and of the scenarios run there before
+    if args.config:     # the system file's run, then the report of it and of every run there before
         from ..scenarios import get
         from ..system.commands import scenario_key
         key = scenario_key(args)
         name = get(key).name
-        return run_and_report(out, build_dir, [key], 1, lambda: [n for n in SCENARIOS if n != name and report.has_run(
-            out, n)] + [name])
+        return run_and_report(out, build_dir, [key], 1, lambda: [
+            n for n in [*SCENARIOS, *report.other_runs(out)] if n != name and report.has_run(out, n)] + [name])
     missing = [name for name in SCENARIOS if not report.has_run(out, name)]
     return run_and_report(out, build_dir, missing, args.jobs)
 

@@ -16,7 +16,7 @@ from pathlib import Path
 from observers.checks import ParameterError
 
 __all__ = ["scenario_key", "definitions_of", "build_definitions", "show", "is_design_file", "holds_components",
-           "configure_show"]
+           "require_rereadable", "configure_show"]
 
 
 def scenario_key(args) -> str:
@@ -32,6 +32,19 @@ def scenario_key(args) -> str:
     path = Path(config)
     scenario_from_file(path)                   # checked whole now: one line naming the field, nothing built
     return str(path.resolve())
+
+
+def require_rereadable(path: Path | str, command: str) -> None:
+    """``--config path`` of a command that reads the file more than once (``sweep``: here and in each
+    worker) must be a regular file, not a pipe (``<(obsfmu show ship)``): else one line naming it."""
+    import stat
+    try:
+        mode = Path(path).stat().st_mode
+    except OSError:
+        return                                   # missing or unreadable: the reader names the reason
+    if not stat.S_ISREG(mode) and not stat.S_ISDIR(mode):
+        raise ParameterError(f"--config {path}: not a regular file (a pipe?); {command} reads it more than once "
+                             "(its workers too): write it to a file first (obsfmu show SCENARIO > my.toml)")
 
 
 def holds_components(path: Path | str) -> bool:

@@ -1,4 +1,4 @@
-"""TOML designs: the shipped ship design, a user's own plant, and every way a config can be wrong."""
+"""TOML designs: the ship design of paper 002, a user's own plant, and every way a config can be wrong."""
 
 import textwrap
 
@@ -27,9 +27,8 @@ def with_changes(section, **fields):
     return config
 
 
-def test_shipped_ship_design_gives_the_paper_gains():
-    from fmus.scenarios.ship import CONFIG
-    design = design_from_config(load_config(CONFIG))
+def test_the_ship_design_gives_the_paper_gains():
+    design = design_from_config(SHIP)
     assert np.max(np.abs(design.K - [[398, 43]])) < 1e-9
     assert np.max(np.abs(design.N - [[83], [1847]])) < 1e-9
     assert [d.model_name for d in design.definitions()] == ["ship_observer", "ship_plant", "ship_controller"]

@@ -1,18 +1,19 @@
 """Scenario ``ship`` -- paper 002: modal observer and state feedback for ship course stabilisation.
 
-Three FMUs built from ``ship.toml``: the unstable plant (eig(A) = {1, 2}),
-the Luenberger observer (N = [83; 1847], eig(A - N C) = {-40, -40}) and the
-state feedback u = -K x_hat (K = [398, 43], eig(A - B K) = {-20, -20}).
-Free motion from x(0) = [0.05; 0.2], x_hat(0) = 0, zero reference, 0..1 s.
+Defined by its system file ``system.toml`` (``obsfmu show ship``): the unstable plant
+(eig(A) = {1, 2}), the Luenberger observer (N = [83; 1847], eig(A - N C) = {-40, -40}) and the state
+feedback u = -K x_hat (K = [398, 43], eig(A - B K) = {-20, -20}); free motion from x(0) = [0.05; 0.2],
+x_hat(0) = 0, zero reference, 0..1 s.  Default: 2e-5 s, Gauss-Seidel, linear coupling -- the step at
+which every printed digit is reproduced (the measurements: ``docs/paper002.md``, section 3).
 
-The summary compares the run with the exact composite solution ``expm(Ae t) xe0`` (eq. (12)) and
-with the paper's printed table (``paper_table.csv``).  Default: 2e-5 s, Gauss-Seidel, linear
-coupling -- the step at which every printed digit is reproduced (the measurements:
-``docs/paper002.md``, section 3).
+This module adds what only the paper gives: the summary against the exact composite solution
+``expm(Ae t) xe0`` (eq. (12)) and the paper's printed table (``paper_table.csv``), the figure, the
+sweep measure and the claim.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
@@ -20,23 +21,38 @@ import numpy as np
 
 from observers.integrators import expm
 
-from ...config import LinearDesign, design_from_config, load_config
-from ...master import Connection
 from ...metrics import format_time, settling_time, time_to_stay_below
 from ...plotting import Curve, Panel, figure
 from ...result import Result
-from .. import Scenario, Summary, changed_parameters
+from ...system import SystemSpec, load_system
+from ...system.papers import paper_scenario
+from .. import Summary, changed_parameters
 from .measures import MEASURE
 
 HERE = Path(__file__).parent
-CONFIG = HERE / "ship.toml"
+SYSTEM_FILE = HERE / "system.toml"
 PAPER_TABLE = HERE / "paper_table.csv"
 TABLE_COLUMNS = ("y", "x1", "x2", "x1_hat", "x2_hat")
+INSTANCES = ("plant", "observer", "controller")
 
 
 @lru_cache(maxsize=1)
-def design() -> LinearDesign:
-    return design_from_config(load_config(CONFIG))
+def system() -> SystemSpec:
+    """The checked system file of the scenario (read once)."""
+    return load_system(SYSTEM_FILE)
+
+
+def file_parameters() -> dict[str, float]:
+    """``instance.variable -> value`` of every FMU parameter and ``[values]`` input of the system file
+    (the paper's design: the file's matrices and the gains designed from its poles)."""
+    spec = system()
+    values = {}
+    for instance, component in spec.components.items():
+        for parameter in (p for definition in component.definitions for p in definition.parameters):
+            values.update({f"{instance}.{name}": value for name, value in zip(parameter.element_names,
+                                                                               parameter.value)})
+        values.update({f"{instance}.{name}": value for name, value in spec.values.get(instance, {}).items()})
+    return values
 
 
 def paper_table() -> tuple[np.ndarray, dict[str, np.ndarray]]:
@@ -55,42 +71,60 @@ def _matrix(values: dict[str, float], name: str, shape: tuple[int, int], default
     return matrix
 
 
-def composite_matrices(parameters: dict[str, float] | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """``(Ae, be)`` of the closed loop ``xe' = Ae xe + be r``, ``xe = [x, x_hat]`` (eq. (12)).
+@dataclass(frozen=True)
+class Loop:
+    """The numbers of the closed loop: the plant's and the observer's ``(A, B, C, D)``, the gains, the
+    constant reference and the initial states."""
 
-    The plant, the observer's own model, ``N``, ``K`` and the constant reference ``r`` are read
-    from ``parameters`` (``instance.variable``, see :class:`~fmus.result.RunInfo`; default: the
-    paper's design), so a run with other parameters has its own exact solution.
-    """
-    d = design()
-    n, m, p = d.model.n, d.model.m, d.model.p
-    if parameters is None:
-        model = (d.model.A, d.model.B, d.model.C, d.model.D)
-        plant = observer = model
-        N, K, r = d.N, d.K, np.zeros(m)
-    else:
-        values = {instance: {k.partition(".")[2]: v for k, v in parameters.items() if k.startswith(instance + ".")}
-                  for instance in ("plant", "observer", "controller")}
-        plant, observer = (tuple(_matrix(values[instance], name, shape) for name, shape in
-                                 (("A", (n, n)), ("B", (n, m)), ("C", (p, n)), ("D", (p, m))))
-                           for instance in ("plant", "observer"))
-        N = _matrix(values["observer"], "N", (n, p))
-        K = _matrix(values["controller"], "K", (m, n))
-        r = _matrix(values["controller"], "r", (m, 1), default=0.0)[:, 0]
-    (Ap, Bp, Cp, Dp), (Ao, Bo, Co, Do) = plant, observer
+    plant: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+    observer: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+    N: np.ndarray
+    K: np.ndarray
+    r: np.ndarray
+    x0: np.ndarray
+    x_hat0: np.ndarray
+
+
+def loop(parameters: dict[str, float] | None = None) -> Loop:
+    """The closed loop of ``parameters`` (``instance.variable``, see :class:`~fmus.result.RunInfo`;
+    default: the system file's, :func:`file_parameters`), so that a run with other parameters has its own."""
+    values = file_parameters() if parameters is None else parameters
+    shapes = {p.name: p.shape for p in system().components["plant"].definitions[0].parameters}
+    (n, m), p = shapes["B"], shapes["C"][0]
+    own = {instance: {k.partition(".")[2]: v for k, v in values.items() if k.startswith(instance + ".")}
+           for instance in INSTANCES}
+    plant, observer = (tuple(_matrix(own[instance], name, shape) for name, shape in
+                             (("A", (n, n)), ("B", (n, m)), ("C", (p, n)), ("D", (p, m))))
+                       for instance in ("plant", "observer"))
+    column = {"x0": ("plant", n), "x_hat0": ("observer", n), "r": ("controller", m)}
+    x0, x_hat0, r = (_matrix(own[instance], name, (size, 1), default=0.0)[:, 0]
+                     for name, (instance, size) in column.items())
+    return Loop(plant, observer, _matrix(own["observer"], "N", (n, p)), _matrix(own["controller"], "K", (m, n)),
+                r, x0, x_hat0)
+
+
+def composite_matrices(parameters: dict[str, float] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """``(Ae, be)`` of the closed loop ``xe' = Ae xe + be r``, ``xe = [x, x_hat]`` (eq. (12)), of
+    :func:`loop` ``(parameters)``."""
+    closed = loop(parameters)
+    (Ap, Bp, Cp, Dp), (Ao, Bo, Co, Do) = closed.plant, closed.observer
+    N, K, r = closed.N, closed.K, closed.r
     Bu = Bo + N @ (Dp - Do)                    # how u enters x_hat' (y = Cp x + Dp u)
     Ae = np.block([[Ap, -Bp @ K], [N @ Cp, Ao - N @ Co - Bu @ K]])
     return Ae, np.concatenate([Bp @ r, Bu @ r])
 
 
 def composite_solution(times, x0=None, x_hat0=None, parameters: dict[str, float] | None = None) -> np.ndarray:
-    """Exact ``xe(t)`` of the composite system (eq. (12), plus a constant reference ``r``)."""
-    d = design()
+    """Exact ``xe(t)`` of the composite system (eq. (12), plus a constant reference ``r``); the initial
+    states default to those of ``parameters``."""
     Ae, be = composite_matrices(parameters)
     size = Ae.shape[0]
     augmented = np.zeros((size + 1, size + 1))
     augmented[:size, :size], augmented[:size, size] = Ae, be
-    xe0 = np.concatenate([d.x0 if x0 is None else x0, d.x_hat0 if x_hat0 is None else x_hat0, [1.0]])
+    if x0 is None or x_hat0 is None:
+        closed = loop(parameters)
+        x0, x_hat0 = closed.x0 if x0 is None else x0, closed.x_hat0 if x_hat0 is None else x_hat0
+    xe0 = np.concatenate([x0, x_hat0, [1.0]])
     return np.array([expm(augmented * t) @ xe0 for t in np.asarray(times, dtype=float)])[:, :size]
 
 
@@ -177,10 +211,6 @@ def plot(result: Result, path: Path) -> list[Path]:
                   result.time_unit)
 
 
-def definitions():
-    return design().definitions()
-
-
 CLAIM = (
         "Paper 002 designs, by pole placement on the binomial standard form, a full-order observer "
         "(N = [83; 1847], eig(A - N C) = {-40, -40}) and a state feedback (K = [398, 43], "
@@ -189,25 +219,4 @@ CLAIM = (
         "xe = [x1, x2, x1_hat, x2_hat] every 0.01 s to four decimals (for example xe(0.01) = "
         "[0.0513, 0.0106, 0.0309, 0.4386]), and its figures show the loop settled within 0.3 s.")
 
-SCENARIO = Scenario(
-    name="ship",
-    description="paper 002: ship course observer + modal state feedback (free motion, 0..1 s)",
-    definitions=definitions,
-    components=[("plant", "ship_plant", {}), ("observer", "ship_observer", {}),
-                ("controller", "ship_controller", {"r": 0.0})],
-    connections=[
-        Connection("plant.y", "observer.y"),
-        Connection("controller.u", "observer.u"),
-        Connection("controller.u", "plant.u"),
-        Connection("observer.x_hat", "controller.x_hat"),
-    ],
-    stop_time=1.0,
-    step=2e-5,
-    order="gauss-seidel",
-    coupling="linear",
-    summarize=summarize,
-    plot=plot,
-    claim=CLAIM,
-    measure=MEASURE,
-    output_interval=1e-3,
-)
+SCENARIO = paper_scenario(SYSTEM_FILE, "ship", summarize=summarize, plot=plot, claim=CLAIM, measure=MEASURE)

@@ -129,6 +129,20 @@ def test_the_plan_reports_units_and_resolved_settings(build_dir):
     assert [s.values["plant.omega"] for s in plan.samples] == [0.5, 1.0, 1.5, 2.0]
 
 
+def test_a_sweep_of_a_system_file_takes_its_experiment(build_dir, tmp_path):
+    """``obsfmu sweep --config FILE``: the file's step, master and tolerance unless an option is given."""
+    from fmus.campaign.cli import campaign_from_args
+    path = tmp_path / "ship.toml"
+    path.write_text(get("ship").system_file.read_text().replace('master = "gauss-seidel"',
+                                                                 'master = "adaptive"\ntolerance = 3e-5'))
+    sweep = ["sweep", "--config", str(path), "--vary", "plant.x0[1]=0,0.1", "--build-dir", str(build_dir)]
+    plan = campaign_from_args(cli.parser().parse_args(sweep)).plan()
+    assert plan.settings == {"stop_time": 1.0, "step": 2e-5, "order": "adaptive", "coupling": "linear",
+                             "tolerance": 3e-5}
+    plan = campaign_from_args(cli.parser().parse_args(sweep + ["--tol", "1e-4", "--step", "1e-4"])).plan()
+    assert (plan.settings["tolerance"], plan.settings["step"]) == (1e-4, 1e-4)
+
+
 def test_sweep_times_take_units_like_run():
     from fmus.campaign.cli import campaign_from_args
     args = cli.parser().parse_args(["sweep", "state-affine-chemostat", "--vary", "plant.x0[1]=1,2",

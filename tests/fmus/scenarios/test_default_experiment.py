@@ -41,9 +41,11 @@ def test_the_shared_fmus_declare_the_paper_case_not_the_bounded_one(every_fmu):
 def test_a_design_built_alone_declares_its_own_run(tmp_path):
     """``obsfmu build --config``: 10 time constants of the slowest designed pole, a hundredth of the fastest."""
     from fmus.cli.main import main
-    from fmus.scenarios.ship import CONFIG
 
-    assert main(["build", "--config", str(CONFIG), "--out", str(tmp_path)]) == 0
+    design = tmp_path / "ship.toml"          # paper 002's design: t_settle 0.15 s (observer), 0.3 s (loop)
+    design.write_text('name = "ship"\n[plant]\nA = [[0, 1], [-2, 3]]\nB = [[0], [1]]\nC = [[1, 0]]\n'
+                      "[observer]\nt_settle = 0.15\n[controller]\nt_settle = 0.3\n")
+    assert main(["build", "--config", str(design), "--out", str(tmp_path)]) == 0
     built = sorted(tmp_path.glob("ship_*.fmu"))
     assert len(built) == 3
     for path in built:  # poles -40 (observer), -20 (controller): 10 / 20 s, 0.01 / 40 s to one digit

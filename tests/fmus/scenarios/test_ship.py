@@ -35,6 +35,25 @@ def test_transcribed_table_matches_the_exact_solution():
     assert sum(int(np.sum(~np.isnan(v))) for v in table.values()) == 25 + 4 * 31
 
 
+def test_the_system_file_holds_the_papers_numbers():
+    """The scenario's system file (its matrices, the gains designed from its poles, x(0), x_hat(0), r)
+    is the loop of the independent reference, exactly; so is its composite matrix Ae (eq. (12))."""
+    from fmus.scenarios import ship
+    from fmus.scenarios.ship import reference
+
+    loop = ship.loop()
+    assert [np.array_equal(a, b) for a, b in zip(loop.plant, loop.observer)] == [True] * 4
+    for mine, paper in zip(loop.plant[:3] + (loop.N, loop.K), (reference.A, reference.B, reference.C,
+                                                               reference.N, reference.K)):
+        np.testing.assert_array_equal(mine, paper)
+    np.testing.assert_array_equal(np.concatenate([loop.x0, loop.x_hat0]), reference.XE0)
+    assert not loop.plant[3].any() and not loop.r.any()
+    Ae, be = ship.composite_matrices()
+    np.testing.assert_array_equal(Ae, reference.AE)
+    assert not be.any()
+    assert get("ship").system_file == ship.SYSTEM_FILE
+
+
 @pytest.fixture(scope="module")
 def default_run(build_dir, tmp_path_factory):
     """``obsfmu run ship --csv out.csv`` with the default step, through the command line."""

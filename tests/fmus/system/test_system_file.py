@@ -151,6 +151,9 @@ def test_noisy_measurements_run_plot_export_and_report(tmp_path):
     assert reported.returncode == 0, reported.stderr
     page = (tmp_path / "results" / "report.html").read_text()
     assert 'id="dcmotor"' in page and (tmp_path / "results" / "dcmotor.csv").exists()
+    from fmus import report                     # a plain 'obsfmu report' there keeps the file's entry
+    assert report.other_runs(tmp_path / "results") == ["dcmotor"]
+    assert 'id="dcmotor"' in report.write_report(tmp_path / "results", tmp_path / "build").read_text()
 
 
 def test_build_prints_the_designed_gains_and_writes_fmus_with_the_umask(tmp_path):
