@@ -60,7 +60,7 @@ def cmd_run(args) -> int:
     figures = figure_paths("--plot", args.plot) if args.plot else []
     build_dir = check_directory("--build-dir", args.build_dir, writable=False)
     with StopRequest() as stop:
-        interval = times["output_interval"] or (scenario.output_interval if args.config else None)  # a file's own
+        interval = times["output_interval"] or scenario.output_interval       # the scenario's (the file's) own
         outcome = run_scenario(key, build_dir, stop, csv, interval,
                                stop_time=times["stop_time"], step=times["step"], order=args.master,
                                coupling=args.coupling, overrides=overrides, tolerance=args.tol,
@@ -169,7 +169,8 @@ def configure_run(parser) -> None:
                         help="write every output at every communication point, streamed as the run goes "
                              "(an interrupted run leaves FILE.partial.csv)")
     parser.add_argument("--output-interval", type=duration, metavar="DT",
-                        help="write only the rows nearest to multiples of DT to the CSV")
+                        help="write only the rows nearest to multiples of DT to the CSV (default: the "
+                        "scenario's own, its system file's [experiment] output_interval)")
     parser.add_argument("--plot", metavar="FILE.png",
                         help="write the scenario's figure as FILE.png and FILE.svg (or FILE.svg/.pdf and FILE.png)")
 

@@ -1,10 +1,8 @@
 """The paper scenarios as system files (issue 26 item 5): every scenario with a ``system_file`` is that file.
 
 For each: ``obsfmu show NAME`` prints the file exactly, and the file written from that output, run with
-``obsfmu run --config``, writes the same CSV as ``obsfmu run NAME``, bit for bit.  ``obsfmu run NAME``
-writes every communication point unless ``--output-interval`` is given, a file's run its
-``[experiment] output_interval``: the scenario's run is given the scenario's interval, the file's
-nothing (so the file's own interval is what is compared).  Everything goes through the command line
+``obsfmu run --config``, writes the same CSV as ``obsfmu run NAME``, bit for bit, both with no option but
+``--csv`` (both at the file's ``[experiment] output_interval``).  Everything goes through the command line
 (subprocesses); the runs share the session's build folder, so each FMU is built once.
 """
 
@@ -38,14 +36,12 @@ def run_csv(arguments: list, csv: Path, build_dir: Path) -> bytes:
 
 @pytest.fixture(scope="module")
 def scenario_csv(build_dir, tmp_path_factory):
-    """``name -> bytes`` of the CSV of ``obsfmu run NAME`` at the scenario's output interval (each run once)."""
+    """``name -> bytes`` of the CSV of ``obsfmu run NAME`` (each run once)."""
     made: dict[str, bytes] = {}
 
     def csv(name: str) -> bytes:
         if name not in made:
-            interval = SCENARIOS[name].output_interval
-            options = [] if interval is None else ["--output-interval", repr(interval)]
-            made[name] = run_csv([name, *options], tmp_path_factory.mktemp(name) / "scenario.csv", build_dir)
+            made[name] = run_csv([name], tmp_path_factory.mktemp(name) / "scenario.csv", build_dir)
         return made[name]
     return csv
 
