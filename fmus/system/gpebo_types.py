@@ -145,10 +145,14 @@ def _structure(values: dict, plant: dict | None, context: Context) -> dict:
             raise ParameterError(f"{context.prefix}{key}: required (or name a generator-plant in plant to take "
                                  "the structure from)")
         if own is not None and theirs is not None and not _same(own, theirs):
-            raise ParameterError(f"{context.prefix}{key}: {own!r} differs from the {key} of the plant "
-                                 f"{values['plant']!r} ({theirs!r}); the observer needs the plant's structure")
+            raise ParameterError(f"{context.prefix}{key}: {_text(own)} differs from the {key} of the plant "
+                                 f"{values['plant']!r} ({_text(theirs)}); the observer needs the plant's structure")
         structure[key] = own if own is not None else theirs
     return structure
+
+
+def _text(value) -> str:
+    return str(value.tolist()) if isinstance(value, np.ndarray) else repr(value)
 
 
 def _same(a, b) -> bool:
@@ -216,6 +220,9 @@ def _define_observer(model_name: str, values: dict, context: Context) -> list:
     structure = _structure(values, plant, context)
     n = np.shape(structure["H_theta"])[0] if np.ndim(structure["H_theta"]) == 2 else 0
     x_hat0 = np.zeros(n) if values["x_hat0"] is None else values["x_hat0"]
+    if np.size(x_hat0) != n:
+        raise ParameterError(f"{context.prefix}x_hat0: expected {n} entries (the rows of H_theta), got "
+                             f"{np.size(x_hat0)}")
     sizes = [np.size(structure["h_beta"]), np.shape(structure["H_theta"])[-1]]
     if structure["H_delta"] is not None:
         sizes.append(np.shape(structure["H_delta"])[-1])

@@ -192,6 +192,7 @@ class ShiftRegression:
 
     MAX_TERMS = 6
     GENERATORS = ("gamma_beta", "gamma_theta", "gamma_delta")
+    MAPS = ("h_beta", "H_theta", "H_delta")     #: the fields that give each generator's size and output map
 
     def __init__(self, model: GeneratorModel):
         self.model = model
@@ -201,20 +202,20 @@ class ShiftRegression:
         reached = {generator for generator, _, _ in self.terms}
         for v in present:
             if v not in reached:
-                raise ParameterError(f"{self.GENERATORS[v]}: this generator does not reach the output "
-                                     f"({('h_beta', 'H_theta', 'H_delta')[v]} is zero): its coefficient is "
-                                     "not identifiable")
+                raise ParameterError(f"{self.MAPS[v]}: is zero, so the {self.GENERATORS[v][6:]} generator does not "
+                                     f"reach the output: {self.GENERATORS[v]} is not identifiable")
         T = len(self.terms)
         if T > self.MAX_TERMS:
             raise ParameterError(f"H_theta: the input-output form has {T} terms (beta, each nonzero row of "
                                  f"H_theta, delta); the determinant regression takes at most {self.MAX_TERMS}")
         self.D = lcm(*(model.sizes[v] for v in present))
         self.orders = np.array([self.D // model.sizes[v] for v in present])
-        for name, order in zip(self.names, self.orders):
+        for v, name, order in zip(present, self.names, self.orders):
             if order % 2 == 0:
-                raise ParameterError(f"{name}: the regression shifts by D = lcm of the generator sizes = {self.D} "
-                                     f"samples, so it identifies {name}^{order}: an even power loses the sign; "
-                                     "give the generators sizes with odd ratios D / d (e.g. all equal)")
+                raise ParameterError(f"{self.MAPS[v]}: the regression shifts by D = lcm of the generator sizes "
+                                     f"{[model.sizes[w] for w in present]} = {self.D} samples, so it identifies "
+                                     f"{name}^{order}: an even power loses the sign; give the generators sizes "
+                                     "with odd ratios D / d (e.g. all equal)")
         self.window = model.n + T * self.D + 1
         slot = {v: i for i, v in enumerate(present)}
         # Leibniz: permutation -> sign and exponent vector alpha (row j of term t adds j to its variable)
