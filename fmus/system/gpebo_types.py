@@ -228,7 +228,7 @@ def _define_observer(model_name: str, values: dict, context: Context) -> list:
         sizes.append(np.shape(structure["H_delta"])[-1])
     gamma_hat0 = np.full(len(sizes), 0.5) if values["gamma_hat0"] is None else values["gamma_hat0"]
     keywords = {key: values[key] for key in ("k_gamma", "k_eta", "eta_hat0", "restart_tol", "excitation_tol",
-                                              "converged_tolerance", "theta_bound")}
+                                              "converged_tolerance", "theta_bound", "consistency_tol")}
     definition = gpebo_observer_definition(
         model_name, Ts=_positive(values, "Ts", context.prefix),
         gamma_hat0=gamma_hat0, x_hat0=x_hat0, f=_f_option(structure, np.size(x_hat0), context.prefix),
@@ -271,5 +271,8 @@ register("gpebo-observer", "Adaptive observer of paper 000 (GPEBO + DREM) for a 
                    "are at most this", 1e-6, example="1e-6"),
              Field("theta_bound", "number", "a-priori bound on |sigma_i| and |eta_i| (the criterion's "
                    "assumption)", 100.0, example="100"),
+             Field("consistency_tol", "number", "converged also needs the a-priori relative residuals of the "
+                   "last p gamma rows at most this: the bounds hold for exact data only (noise keeps it 0)", 1e-10,
+                   example="1e-10"),
          ), _define_observer)
 

@@ -36,7 +36,13 @@ the last restart); through ``gamma = sigma^L(sigma)`` (the regression's ``error_
 first bounds ``|gamma_hat - gamma|``.  ``converged = 1`` when both are at most ``converged_tolerance`` and the
 filters run with a ``Gamma`` within that tolerance of the true one (the eta regression is exact
 only then: the assumption is that an error below the tolerance there leaves eta's bound valid);
-``excitation = min(|Delta_sigma|, |Delta_eta|)`` at the last sample.
+``excitation = min(|Delta_sigma|, |Delta_eta|)`` at the last sample.  The bounds hold for an exact
+regression only, so ``converged`` also needs the data to be consistent with the estimate: the
+a-priori relative residuals of the last ``p`` rows of the gamma regression (16),
+``|zeta - rho^T sigma_hat(k-1)| / |(zeta, rho)|``, at most ``consistency_tol`` (round-off gives
+~1e-15; measurement noise or a plant outside the model gives more, and the flag stays 0).  The eta
+regression is not tested this way: its rows can be small, and its round-off residual reaches
+~1e-10 relative on exact data.
 """
 
 from __future__ import annotations
@@ -54,6 +60,12 @@ from .model import GeneratorModel, require_sample_step
 from .regression import regression_for
 
 __all__ = ["GpeboObserver"]
+
+
+def _residual(z: float, row: np.ndarray, estimate: np.ndarray) -> float:
+    """A-priori relative residual ``|z - row^T estimate| / |(z, row)|`` of a new regression row."""
+    scale = float(np.sqrt(z * z + row @ row))
+    return abs(z - float(row @ estimate)) / scale if scale > 0 else 0.0
 
 
 class GpeboObserver(Block):
@@ -80,6 +92,10 @@ class GpeboObserver(Block):
         Relative change of ``gamma_hat`` that restarts the filters.
     excitation_tol : float
         Threshold on ``nu_gamma`` and ``nu_eta`` for ``excited``.
+    converged_tolerance, theta_bound : float
+        The ``converged`` criterion (module docstring).
+    consistency_tol : float
+        Largest a-priori relative residual of the last ``p`` gamma rows for ``converged`` (exact data only).
 
     Ports: inputs ``u``, ``y``; outputs ``x_hat`` (n), ``gamma_hat`` (number of generators),
     ``eta_hat`` (N), ``beta_hat``, ``theta_hat`` (n), ``excited``,
@@ -87,11 +103,12 @@ class GpeboObserver(Block):
     """
 
     not_state = ("model", "regression", "Ts", "k_gamma", "k_eta", "restart_tol", "excitation_tol",
-                 "converged_tolerance", "theta_bound", "sigma_error0")
+                 "converged_tolerance", "theta_bound", "consistency_tol", "sigma_error0")
 
     def __init__(self, model: GeneratorModel, Ts: float, k_gamma: float = 1e-8, k_eta: float = 1e-8,
                  gamma_hat0=(-0.5, 0.5), eta_hat0=None, x_hat0=None, restart_tol: float = 1e-11,
-                 excitation_tol: float = 1e-9, converged_tolerance: float = 1e-6, theta_bound: float = 100.0):
+                 excitation_tol: float = 1e-9, converged_tolerance: float = 1e-6, theta_bound: float = 100.0,
+                 consistency_tol: float = 1e-10):
         self.model = model
         self.regression = regression_for(model)
         self.Ts = require_positive("Ts", Ts)
@@ -101,6 +118,7 @@ class GpeboObserver(Block):
         self.excitation_tol = require_positive("excitation_tol", excitation_tol)
         self.converged_tolerance = require_positive("converged_tolerance", converged_tolerance)
         self.theta_bound = require_positive("theta_bound", theta_bound)
+        self.consistency_tol = require_positive("consistency_tol", consistency_tol)
         names = self.regression.names
         gamma_hat0 = as_vector("gamma_hat0", gamma_hat0, len(names))
         for v in self.regression.divisors:
@@ -124,6 +142,7 @@ class GpeboObserver(Block):
         self.nu_gamma = 1.0
         self.nu_eta = 1.0
         self.restart_time = 0.0
+        self.residuals = np.ones(p)   #: a-priori relative residuals of the last p rows of the gamma regression
         self.input_sizes = {"u": 1, "y": 1}
         self.output_sizes = {"x_hat": n, "gamma_hat": len(names), "eta_hat": N, "beta_hat": 1, "theta_hat": n,
                              "excited": 1, "nu_gamma": 1, "nu_eta": 1, "restart_time": 1,
@@ -157,7 +176,8 @@ class GpeboObserver(Block):
         exact only for the true ``Gamma``."""
         tolerance, bound = self.converged_tolerance, self.gamma_error_bound()
         gap = float(np.max(np.abs(self.filter_gammas - self.gamma_hat))) + bound
-        return bound <= tolerance and gap <= tolerance and self.eta_error_bound() <= tolerance
+        return (bound <= tolerance and gap <= tolerance and self.eta_error_bound() <= tolerance
+                and float(np.max(self.residuals)) <= self.consistency_tol)
 
     def _moved(self, gammas: np.ndarray) -> bool:
         scale = max(1.0, float(np.max(np.abs(gammas))))
@@ -193,6 +213,7 @@ class GpeboObserver(Block):
         self.samples += 1
         if self.samples >= self.regression.window:
             zeta, rho = self.regression.row(self.window[:, 0], self.window[:, 1])
+            self.residuals = np.append(self.residuals[1:], _residual(zeta, rho, self.gamma_drem.theta_hat))
             self.gamma_drem.update(zeta, rho)
             self.nu_gamma *= self.k_gamma / (self.k_gamma + self.gamma_drem.delta ** 2)
         gammas = self.gamma_hat

@@ -42,7 +42,8 @@ def _model(p, options, n: int) -> GeneratorModel:
 def _gpebo_observer(p, options):
     return GpeboObserver(_model(p, options, p["x_hat0"].size), float(p["Ts"]), float(p["k_gamma"]),
                          float(p["k_eta"]), p["gamma_hat0"], p["eta_hat0"], p["x_hat0"],
-                         float(p["restart_tol"]), float(p["excitation_tol"]), *contract_values(p, GPEBO_CONTRACT))
+                         float(p["restart_tol"]), float(p["excitation_tol"]), *contract_values(p, GPEBO_CONTRACT),
+                         consistency_tol=float(p["consistency_tol"]))
 
 
 def _scalar(name, value, description, unit=None) -> Parameter:
@@ -106,7 +107,7 @@ def generator_plant_definition(model_name: str, *, gamma_beta=EXAMPLE["gamma_bet
 def gpebo_observer_definition(model_name: str, *, Ts: float = 1.0, k_gamma: float = 1e-8, k_eta: float = 1e-8,
                               gamma_hat0=(-0.5, 0.5), eta_hat0=None, x_hat0=None, restart_tol: float = 1e-11,
                               excitation_tol: float = 1e-9, converged_tolerance: float = 1e-6,
-                              theta_bound: float = 100.0, f="plants.gpebo:sine", h_beta=EXAMPLE["h_beta"],
+                              theta_bound: float = 100.0, consistency_tol: float = 1e-10, f="plants.gpebo:sine", h_beta=EXAMPLE["h_beta"],
                               H_theta=EXAMPLE["H_theta"], H_delta=None, description: str = "") -> FmuDefinition:
     """GPEBO + DREM observer of paper 000 for the structure ``h_beta``, ``H_theta``, ``H_delta``, ``f``.
 
@@ -121,7 +122,7 @@ def gpebo_observer_definition(model_name: str, *, Ts: float = 1.0, k_gamma: floa
     model = GeneratorModel.checked(x_hat0.size, h_beta, H_theta, H_delta, resolve(f, "f"))
     eta_hat0 = np.zeros(model.N) if eta_hat0 is None else eta_hat0
     names = GpeboObserver(model, Ts, k_gamma, k_eta, gamma_hat0, eta_hat0, x_hat0, restart_tol, excitation_tol,
-                          converged_tolerance, theta_bound).regression.names
+                          converged_tolerance, theta_bound, consistency_tol).regression.names
     coefficients = ", ".join(names)
     return FmuDefinition(
         model_name=model_name,
@@ -140,6 +141,8 @@ def gpebo_observer_definition(model_name: str, *, Ts: float = 1.0, k_gamma: floa
             _scalar("restart_tol", restart_tol, "relative change of gamma_hat that restarts the GPEBO filters"),
             _scalar("excitation_tol", excitation_tol, "excited = 1 once nu_gamma and nu_eta are below this"),
         ] + contract_parameters(GPEBO_CONTRACT, converged_tolerance=converged_tolerance, theta_bound=theta_bound)
+        + [_scalar("consistency_tol", consistency_tol, "converged needs the a-priori relative residuals of the "
+                   "last p rows of the gamma regression at most this (the bounds hold for exact data only)")]
         + _structure(h_beta, H_theta, H_delta),
         inputs=[Port("u", 1, "plant input u(k), taken at the step start", scalar=True),
                 Port("y", 1, "measured output y(k), taken at the step start", scalar=True)],

@@ -150,3 +150,11 @@ def test_the_cli_refuses_with_exit_2(tmp_path):
     assert done.returncode == 2
     assert "components.observer.gamma_hat0: gamma_beta (entry 1) must be nonzero" in done.stderr
     assert np.char.count(done.stderr.strip(), "\n") <= 1
+
+
+def test_a_sampling_period_in_phase_with_a_generator_is_refused():
+    # Ts = pi/2: u(k) = sin(k pi/2) + sin(k pi) vanishes every other sample, in phase with beta (docs/paper000.md)
+    ts = "Ts = 1.5707963267948966\n"
+    refused(r"components.observer.input: 'source' does not excite the regressions over 40 samples of 'plant'",
+            replace=[('input = "source"\n', 'input = "source"\n' + ts),
+                     ('kind = "generator-plant"\n', 'kind = "generator-plant"\n' + ts)])
