@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from observers.block import Segment
-from observers.checks import ParameterError
+from observers.checks import ParameterError, SignalError
 from observers.gpebo import GpeboObserver
 
 from ..runtime.definition import FmuDefinition
@@ -192,12 +192,13 @@ def excitation_run(observer: GpeboObserver, plant, source, samples: int, Ts: flo
 def _require_exciting(observer_definition: FmuDefinition, values: dict, context: Context) -> None:
     """The observer's own criterion over the planned run: excited (nu_gamma, nu_eta < excitation_tol) at the end."""
     names = (values["plant"], values["input"])
+    source = _other(values, "input", context)
     if None in names:
         context.notes.append(f"{context.prefix.rstrip('.')}: excitation not checked (name the file's plant and "
                              "input source in plant and input to check it before the run)")
         return
     plant_kind, plant_values = context.others[names[0]]
-    source_kind, source_values = _other(values, "input", context)
+    source_kind, source_values = source
     blocks = [block_of(TYPES[kind].define("check", {**spec, "given": set()}, Context(
         prefix=f"components.{name}.", name=context.name, others=context.others, folder=context.folder))[0])
         for name, kind, spec in ((names[0], plant_kind, plant_values), (names[1], source_kind, source_values))]
@@ -205,7 +206,11 @@ def _require_exciting(observer_definition: FmuDefinition, values: dict, context:
         raise ParameterError(f"{context.prefix}input: {names[1]!r} is a {source_kind}, not a source with no input "
                              "and one output y")
     samples = values["excitation_samples"]
-    observer = excitation_run(block_of(observer_definition), *blocks, samples, float(values["Ts"]))
+    try:
+        observer = excitation_run(block_of(observer_definition), *blocks, samples, float(values["Ts"]))
+    except (SignalError, ParameterError, FloatingPointError) as exc:
+        raise ParameterError(f"{context.prefix}input: the excitation check of {names[1]!r} driving {names[0]!r} "
+                             f"failed: {exc}") from None
     if not observer.excited:
         raise ParameterError(
             f"{context.prefix}input: {names[1]!r} does not excite the regressions over {samples} samples of "

@@ -158,3 +158,8 @@ def test_a_sampling_period_in_phase_with_a_generator_is_refused():
     refused(r"components.observer.input: 'source' does not excite the regressions over 40 samples of 'plant'",
             replace=[('input = "source"\n', 'input = "source"\n' + ts),
                      ('kind = "generator-plant"\n', 'kind = "generator-plant"\n' + ts)])
+
+
+def test_a_check_run_that_fails_is_a_refusal_naming_the_input():
+    refused(r"components.observer.input: the excitation check of 'source' driving 'plant' failed: .*not finite",
+            replace=[('f = ["sin(y)", "sin(y)"]', 'f = ["1 / (y - 0.3)", "sin(y)"]')])
