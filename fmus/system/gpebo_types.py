@@ -10,7 +10,8 @@ Checked before anything is built (one line naming the field, exit 2):
 
 * dimensions: ``f`` and ``x0`` / ``x_hat0`` have ``n`` entries (the rows of ``H_theta``), the generator
   vectors and initial states the sizes of ``h_beta`` and the columns of ``H_theta``, ``H_delta``;
-* the observer's structure: every generator reaches the output, the regression's shift ``D`` keeps the
+* the observer's structure: every generator reaches the output, the rows of the regression (16) have
+  full rank on generic data (:func:`structural_rank`), the regression's shift ``D`` keeps the
   sign of every ``g`` (:class:`~observers.gpebo.regression.ShiftRegression`), the generators are of the
   form ``gamma = [0, ..., 0, g]`` with ``g != 0`` where the regression divides by it (the paper's
   ``gamma_beta != 0``), the initial guesses nonzero there;
@@ -38,7 +39,7 @@ from ..runtime.kinds import create_block
 from ..runtime.kinds.gpebo import generator_plant_definition, gpebo_observer_definition
 from .schema import TYPES, Context, Field, register
 
-__all__ = ["excitation_run"]
+__all__ = ["excitation_run", "structural_rank"]
 
 _STRUCTURE = ("f", "h_beta", "H_theta", "H_delta")
 _TS = Field("Ts", "number", "sample period: the file's step must equal it", 1.0, "(time unit)", "1.0")
@@ -178,6 +179,36 @@ def _require_plant_form(observer: GpeboObserver, plant: dict, values: dict, cont
                                  f"is divided by it (the paper assumes {name} != 0)")
 
 
+def structural_rank(observer: GpeboObserver, seed: int = 0) -> tuple[int, int]:
+    """``(rank, p)`` of the gamma regression's rows on generic data (random ``u``, ``y`` in [0.2, 1.2]).
+
+    The rows are polynomials of the data, so a rank below ``p`` here is a rank below ``p`` for every
+    input: the regression is not identifiable whatever the excitation (e.g. two terms with the same
+    generator and the same constant ``f``).
+    """
+    regression, rng = observer.regression, np.random.default_rng(seed)
+    w, samples = regression.window, regression.window + 3 * regression.p
+    u, y = rng.standard_normal(samples), rng.uniform(0.2, 1.2, samples)
+    rows = np.array([regression.row(u[k - w + 1:k + 1], y[k - w + 1:k + 1])[1] for k in range(w - 1, samples)])
+    norms = np.linalg.norm(rows, axis=1)
+    if not np.any(norms > 0):
+        return 0, regression.p
+    singular = np.linalg.svd(rows[norms > 0] / norms[norms > 0, None], compute_uv=False)
+    return int(np.sum(singular > 1e-9 * singular[0])), regression.p
+
+
+def _require_identifiable(observer: GpeboObserver, context: Context) -> None:
+    try:
+        rank, p = structural_rank(observer)
+    except SignalError as exc:     # f undefined somewhere in [0.2, 1.2]: the run-time check still applies
+        context.notes.append(f"{context.prefix.rstrip('.')}: structural rank not checked ({exc})")
+        return
+    if rank < p:
+        raise ParameterError(f"{context.prefix}f: with this f and H_theta the regression (16) has {p} unknowns but "
+                             f"rank {rank} on generic data: the generator coefficients are not identifiable "
+                             "whatever the input (terms of one generator with proportional signals)")
+
+
 def excitation_run(observer: GpeboObserver, plant, source, samples: int, Ts: float) -> GpeboObserver:
     """``observer`` after ``samples`` samples of ``plant`` driven by ``source`` (``u(k) = source(k Ts)``)."""
     for k in range(samples):
@@ -240,6 +271,7 @@ def _define_observer(model_name: str, values: dict, context: Context) -> list:
         h_beta=structure["h_beta"], H_theta=structure["H_theta"], H_delta=structure["H_delta"],
         description=values["description"], **keywords)
     observer = block_of(definition)
+    _require_identifiable(observer, context)
     if plant is not None:
         _require_plant_form(observer, plant, values, context)
     _require_exciting(definition, values, context)

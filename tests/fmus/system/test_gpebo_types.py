@@ -163,3 +163,18 @@ def test_a_sampling_period_in_phase_with_a_generator_is_refused():
 def test_a_check_run_that_fails_is_a_refusal_naming_the_input():
     refused(r"components.observer.input: the excitation check of 'source' driving 'plant' failed: .*not finite",
             replace=[('f = ["sin(y)", "sin(y)"]', 'f = ["1 / (y - 0.3)", "sin(y)"]')])
+
+
+def test_a_structure_with_dependent_terms_is_refused_whatever_the_input():
+    # theta1 * 1 and theta2 * 1 of one generator: two proportional columns, det M = 0 for every gamma
+    refused(r"components.observer.f: with this f and H_theta the regression \(16\) has \d+ unknowns but rank 0",
+            replace=[('f = ["sin(y)", "sin(y)"]', 'f = ["1", "1"]'), ("H_theta = [[1, 0], [0, 0]]",
+                                                                      "H_theta = [[1, 0], [0, 1]]")])
+
+
+def test_the_structural_rank_of_the_examples_is_full():
+    from fmus.system.gpebo_types import block_of, structural_rank
+    from fmus.system.load import load_system
+    for path in (ROOT / "fmus/scenarios/discrete_gpebo/system.toml", ROOT / "examples/gpebo_shift3.toml"):
+        observer = [d for d in load_system(path).definitions() if d.kind == "gpebo-observer"][0]
+        assert structural_rank(block_of(observer)) == (5, 5)
