@@ -4,8 +4,9 @@ One :meth:`GpeboObserver.advance` is one sample ``k`` (the step must be ``Ts``)
 and uses ``u(k)``, ``y(k)``, the input values at the step start:
 
 1. *Generator coefficients.*  Row ``(zeta(k), rho(k))`` of the input-output
-   regression (16) (:class:`~observers.gpebo.regression.ExampleRegression`),
-   :class:`~observers.estimation.DiscreteDREM` with delays ``1 .. 4``
+   regression (16) (:func:`~observers.gpebo.regression.regression_for`: the example's own
+   derivation for its structure, the determinant regression of any other plant of the class),
+   :class:`~observers.estimation.DiscreteDREM` with delays ``1 .. p - 1``
    (18)-(19), row-normalised, and the update of Statement 2; then
    ``gamma_hat = sigma^L(sigma_hat)`` (stage 1).
 2. *Generator initial states.*  If ``gamma_hat`` moved by more than
@@ -31,11 +32,17 @@ been exciting (e.g. a constant input): the estimates are not to be trusted.
 Diagnostics contract (docs/estimation.md, "Diagnostics").  With ``|sigma_i| <= theta_bound``
 and ``|eta_i| <= theta_bound`` a priori, ``|sigma_hat_i - sigma_i| <= nu_gamma (|sigma_hat_i(0)|
 + theta_bound)`` and ``|eta_hat_i - eta_i| <= nu_eta (|eta_hat_i(t_r)| + theta_bound)`` (``t_r``
-the last restart); through ``gamma = [sigma_1, sigma_1 sigma_4]`` the first bounds
-``|gamma_hat - gamma|``.  ``converged = 1`` when both are at most ``converged_tolerance`` and the
+the last restart); through ``gamma = sigma^L(sigma)`` (the regression's ``error_bound``) the
+first bounds ``|gamma_hat - gamma|``.  ``converged = 1`` when both are at most ``converged_tolerance`` and the
 filters run with a ``Gamma`` within that tolerance of the true one (the eta regression is exact
 only then: the assumption is that an error below the tolerance there leaves eta's bound valid);
-``excitation = min(|Delta_sigma|, |Delta_eta|)`` at the last sample.
+``excitation = min(|Delta_sigma|, |Delta_eta|)`` at the last sample.  The bounds hold for an exact
+regression only, so ``converged`` also needs the data to be consistent with the estimate: the
+a-priori relative residuals of the last ``p`` rows of the gamma regression (16),
+``|zeta - rho^T sigma_hat(k-1)| / |(zeta, rho)|``, at most ``consistency_tol`` (round-off gives
+~1e-15; measurement noise or a plant outside the model gives more, and the flag stays 0).  The eta
+regression is not tested this way: its rows can be small, and its round-off residual reaches
+~1e-10 relative on exact data.
 """
 
 from __future__ import annotations
@@ -50,26 +57,33 @@ from observers.estimation import DelayExtension, DiscreteDREM
 
 from .filters import GpeboFilters
 from .model import GeneratorModel, require_sample_step
-from .regression import ExampleRegression
+from .regression import regression_for
 
 __all__ = ["GpeboObserver"]
 
 
+def _residual(z: float, row: np.ndarray, estimate: np.ndarray) -> float:
+    """A-priori relative residual ``|z - row^T estimate| / |(z, row)|`` of a new regression row."""
+    scale = float(np.sqrt(z * z + row @ row))
+    return abs(z - float(row @ estimate)) / scale if scale > 0 else 0.0
+
+
 class GpeboObserver(Block):
-    r"""Adaptive observer of paper 000's example: ``gamma``, ``eta = xi(t0)`` and ``x``.
+    r"""Adaptive observer of paper 000 for a plant of its class: ``gamma``, ``eta = xi(t0)`` and ``x``.
 
     Parameters
     ----------
     model : GeneratorModel
-        The example's structure (see :class:`~observers.gpebo.regression.ExampleRegression`).
+        The known structure (``n``, ``h_beta``, ``H_theta``, ``H_delta``, ``f``); every generator is
+        ``gamma_• = [0, ..., 0, g_•]`` with ``g_•`` unknown (:func:`~observers.gpebo.regression.regression_for`).
     Ts : float
         Sample period (s): the only communication step accepted.
     k_gamma, k_eta : float
         Gains ``k_i > 0`` of Statement 2 for the two DREMs (rows are
         normalised, so ``Delta^2 <= 1``; small ``k`` is fast: the error
         shrinks by ``1 + Delta^2 / k`` per sample).
-    gamma_hat0 : array_like, shape (2,)
-        Initial ``[gamma_beta, gamma_theta]``; ``gamma_beta`` nonzero.
+    gamma_hat0 : array_like, shape (number of generators,)
+        Initial ``[g_beta, g_theta(, g_delta)]``; the ones the regression divides by nonzero.
     eta_hat0 : array_like, shape (N,), optional
         Initial ``xi_hat(0)`` (zeros by default).
     x_hat0 : array_like, shape (n,), optional
@@ -78,20 +92,25 @@ class GpeboObserver(Block):
         Relative change of ``gamma_hat`` that restarts the filters.
     excitation_tol : float
         Threshold on ``nu_gamma`` and ``nu_eta`` for ``excited``.
+    converged_tolerance, theta_bound : float
+        The ``converged`` criterion (module docstring).
+    consistency_tol : float
+        Largest a-priori relative residual of the last ``p`` gamma rows for ``converged`` (exact data only).
 
-    Ports: inputs ``u``, ``y``; outputs ``x_hat`` (n), ``gamma_hat`` (2),
+    Ports: inputs ``u``, ``y``; outputs ``x_hat`` (n), ``gamma_hat`` (number of generators),
     ``eta_hat`` (N), ``beta_hat``, ``theta_hat`` (n), ``excited``,
     ``nu_gamma``, ``nu_eta``, ``restart_time``.
     """
 
     not_state = ("model", "regression", "Ts", "k_gamma", "k_eta", "restart_tol", "excitation_tol",
-                 "converged_tolerance", "theta_bound", "sigma_error0")
+                 "converged_tolerance", "theta_bound", "consistency_tol", "sigma_error0")
 
     def __init__(self, model: GeneratorModel, Ts: float, k_gamma: float = 1e-8, k_eta: float = 1e-8,
                  gamma_hat0=(-0.5, 0.5), eta_hat0=None, x_hat0=None, restart_tol: float = 1e-11,
-                 excitation_tol: float = 1e-9, converged_tolerance: float = 1e-6, theta_bound: float = 100.0):
+                 excitation_tol: float = 1e-9, converged_tolerance: float = 1e-6, theta_bound: float = 100.0,
+                 consistency_tol: float = 1e-10):
         self.model = model
-        self.regression = ExampleRegression(model)
+        self.regression = regression_for(model)
         self.Ts = require_positive("Ts", Ts)
         self.k_gamma = require_positive("k_gamma", k_gamma)
         self.k_eta = require_positive("k_eta", k_eta)
@@ -99,10 +118,13 @@ class GpeboObserver(Block):
         self.excitation_tol = require_positive("excitation_tol", excitation_tol)
         self.converged_tolerance = require_positive("converged_tolerance", converged_tolerance)
         self.theta_bound = require_positive("theta_bound", theta_bound)
-        gamma_hat0 = as_vector("gamma_hat0", gamma_hat0, 2)
-        if gamma_hat0[0] == 0:
-            raise ParameterError("gamma_hat0: gamma_beta (entry 1) must be nonzero; the regression is "
-                                 "divided by it (the paper assumes gamma_beta != 0)")
+        self.consistency_tol = require_positive("consistency_tol", consistency_tol)
+        names = self.regression.names
+        gamma_hat0 = as_vector("gamma_hat0", gamma_hat0, len(names))
+        for v in self.regression.divisors:
+            if gamma_hat0[v] == 0:
+                raise ParameterError(f"gamma_hat0: {names[v]} (entry {v + 1}) must be nonzero; the regression is "
+                                     f"divided by it (the paper assumes {names[v]} != 0)")
         N, n = model.N, model.n
         eta_hat0 = np.zeros(N) if eta_hat0 is None else as_vector("eta_hat0", eta_hat0, N)
         x_hat0 = np.zeros(n) if x_hat0 is None else as_vector("x_hat0", x_hat0, n)
@@ -120,8 +142,9 @@ class GpeboObserver(Block):
         self.nu_gamma = 1.0
         self.nu_eta = 1.0
         self.restart_time = 0.0
+        self.residuals = np.ones(p)   #: a-priori relative residuals of the last p rows of the gamma regression
         self.input_sizes = {"u": 1, "y": 1}
-        self.output_sizes = {"x_hat": n, "gamma_hat": 2, "eta_hat": N, "beta_hat": 1, "theta_hat": n,
+        self.output_sizes = {"x_hat": n, "gamma_hat": len(names), "eta_hat": N, "beta_hat": 1, "theta_hat": n,
                              "excited": 1, "nu_gamma": 1, "nu_eta": 1, "restart_time": 1,
                              "excitation": 1, "converged": 1}
 
@@ -131,7 +154,7 @@ class GpeboObserver(Block):
 
     @property
     def gamma_hat(self) -> np.ndarray:
-        """``[gamma_beta_hat, gamma_theta_hat] = sigma^L(sigma_hat)``."""
+        """``[g_beta_hat, g_theta_hat(, g_delta_hat)] = sigma^L(sigma_hat)``."""
         return self.regression.gammas(self.gamma_drem.theta_hat)
 
     @property
@@ -140,9 +163,7 @@ class GpeboObserver(Block):
 
     def gamma_error_bound(self) -> float:
         """Guaranteed bound on ``max |gamma_hat - gamma|`` (Statement 2 and ``gamma = sigma^L(sigma)``)."""
-        e = self.nu_gamma * self.sigma_error0
-        s = np.abs(self.gamma_drem.theta_hat)
-        return float(max(e[0], s[0] * e[3] + s[3] * e[0] + e[0] * e[3]))
+        return self.regression.error_bound(self.gamma_drem.theta_hat, self.nu_gamma * self.sigma_error0)
 
     def eta_error_bound(self) -> float:
         """Bound on ``max |eta_hat - eta|`` since the last restart (exact eta regression)."""
@@ -155,7 +176,8 @@ class GpeboObserver(Block):
         exact only for the true ``Gamma``."""
         tolerance, bound = self.converged_tolerance, self.gamma_error_bound()
         gap = float(np.max(np.abs(self.filter_gammas - self.gamma_hat))) + bound
-        return bound <= tolerance and gap <= tolerance and self.eta_error_bound() <= tolerance
+        return (bound <= tolerance and gap <= tolerance and self.eta_error_bound() <= tolerance
+                and float(np.max(self.residuals)) <= self.consistency_tol)
 
     def _moved(self, gammas: np.ndarray) -> bool:
         scale = max(1.0, float(np.max(np.abs(gammas))))
@@ -191,6 +213,7 @@ class GpeboObserver(Block):
         self.samples += 1
         if self.samples >= self.regression.window:
             zeta, rho = self.regression.row(self.window[:, 0], self.window[:, 1])
+            self.residuals = np.append(self.residuals[1:], _residual(zeta, rho, self.gamma_drem.theta_hat))
             self.gamma_drem.update(zeta, rho)
             self.nu_gamma *= self.k_gamma / (self.k_gamma + self.gamma_drem.delta ** 2)
         gammas = self.gamma_hat

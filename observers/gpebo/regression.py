@@ -64,13 +64,27 @@ align.  See ``docs/paper000.md`` for the measurements.
 
 from __future__ import annotations
 
+from itertools import permutations
+from math import lcm
+
 import numpy as np
 
 from observers.checks import ParameterError
 
 from .model import GeneratorModel
 
-__all__ = ["ExampleRegression"]
+__all__ = ["ExampleRegression", "ShiftRegression", "regression_for", "is_example"]
+
+
+def is_example(model: GeneratorModel) -> bool:
+    """``model`` has the structure of paper 000's example (any ``f``)."""
+    return (model.n == 2 and model.sizes == (2, 2, 0) and np.array_equal(model.h_beta, [1.0, 0.0])
+            and np.array_equal(model.H_theta, [[1.0, 0.0], [0.0, 0.0]]))
+
+
+def regression_for(model: GeneratorModel):
+    """The example's hand-derived regression for its structure, :class:`ShiftRegression` otherwise."""
+    return ExampleRegression(model) if is_example(model) else ShiftRegression(model)
 
 
 class ExampleRegression:
@@ -89,11 +103,11 @@ class ExampleRegression:
     window = 7
     #: names of the identified coefficients, in the order of :meth:`gammas`
     names = ("gamma_beta", "gamma_theta")
+    #: entries of gammas the regression is divided by (must be nonzero)
+    divisors = (0,)
 
     def __init__(self, model: GeneratorModel):
-        expected = (model.n == 2 and model.sizes == (2, 2, 0) and np.array_equal(model.h_beta, [1.0, 0.0])
-                    and np.array_equal(model.H_theta, [[1.0, 0.0], [0.0, 0.0]]))
-        if not expected:
+        if not is_example(model):
             raise ParameterError(
                 "model: the input-output regression is derived for paper 000's example structure "
                 "(n = 2, h_beta = [1, 0], H_theta = [[1, 0], [0, 0]], no delta); got n = "
@@ -119,6 +133,12 @@ class ExampleRegression:
         """Generator vectors ``gamma_beta = [0, g_beta]``, ``gamma_theta = [0, g_theta]`` of the example."""
         return np.array([0.0, gammas[0]]), np.array([0.0, gammas[1]])
 
+    @staticmethod
+    def error_bound(sigma_hat, sigma_error) -> float:
+        """Bound on ``max |gamma_hat - gamma|`` from ``|sigma_hat - sigma| <= sigma_error`` (entrywise)."""
+        e, s = sigma_error, np.abs(sigma_hat)
+        return float(max(e[0], s[0] * e[3] + s[3] * e[0] + e[0] * e[3]))
+
     def row(self, u, y) -> tuple[float, np.ndarray]:
         """``(zeta(k), rho(k))`` from ``u(k-6 .. k)`` and ``y(k-6 .. k)`` (arrays of 7, oldest first)."""
         s = [float(self.model.nonlinearity(y[j])[0]) for j in (1, 3, 5)]
@@ -128,3 +148,167 @@ class ExampleRegression:
         zeta = s1 * u2 * y6
         rho = np.array([s1 * u4 * y4, -s3 * u4 * y2, s5 * u2 * y2, s3 * u0 * y6, -s5 * u0 * y4])
         return zeta, rho
+
+
+def _real_root(value: float, order: int) -> float:
+    """The real ``order``-th root of ``value`` (``order`` odd, or ``value >= 0``)."""
+    if order == 1:
+        return float(value)
+    return float(np.sign(value) * abs(value) ** (1.0 / order))
+
+
+class ShiftRegression:
+    r"""Regression (16) for any plant of the class whose generators have one unknown coefficient each.
+
+    Generator form (the example's, any size ``d``): ``gamma_• = [0, ..., 0, g_•]``, so
+    ``Gamma_•^d = g_• I`` and every output ``w`` of the generator obeys ``w(k + d) = g_• w(k)``.
+
+    Input-output form (8).  Unrolling the shift chain ``n`` samples (``A^n = 0``, ``x(k)`` drops out):
+
+    .. math:: y(k+n) = \beta(k) u(k) + \sum_i \theta_i(k+n-i) f_i(y(k+n-i)) + \sum_i \delta_i(k+n-i),
+
+    a sum of ``T`` *terms* ``s_t(k + o_t) w_t(k + o_t)``: a known signal (``u``, ``f_i(y)``, ``1``)
+    times an unknown generator output (the ``delta`` terms merge into one, their signal is 1).  With
+    ``D = lcm`` of the sizes, ``w_t(k + o_t + j D) = G_t^j w_t(k + o_t)``, ``G_t = g_t^(D / d_t)``.
+
+    Extension (10)-(11).  The form at ``k, k + D, ..., k + T D`` is ``M [w(k); -1] = 0`` with
+    ``M[j, t] = G_t^j s_t(k + o_t + j D)`` and last column ``y(k + n + j D)``, hence ``det M = 0``
+    (the mixing step (14)-(15)).  By Leibniz ``det M = sum_alpha c_alpha(k) G^alpha``: every
+    permutation gives a monomial ``G^alpha`` and a product of data.  Dividing by one monomial
+    ``G^alpha0`` (chosen so that every ``G_v`` is one entry, or a product of two entries, of sigma):
+
+    .. math:: \zeta = c_{\alpha_0} = \rho^T \sigma, \qquad \rho = -[c_\alpha]_{\alpha \ne \alpha_0},
+              \qquad \sigma = [G^{\alpha - \alpha_0}]_{\alpha \ne \alpha_0} .
+
+    Realisable shifted back by ``n + T D`` samples (``window = n + T D + 1``).  For the paper's
+    example this is its 3 x 3 determinant (:class:`ExampleRegression`, which the observer keeps for it).
+
+    Parameters
+    ----------
+    model : GeneratorModel
+        Any structure; refused (naming the field) if a generator reaches no term, if ``D / d`` is
+        even (the sign of ``g`` is lost), or if there are more than :attr:`MAX_TERMS` terms.
+    """
+
+    MAX_TERMS = 6
+    GENERATORS = ("gamma_beta", "gamma_theta", "gamma_delta")
+    MAPS = ("h_beta", "H_theta", "H_delta")     #: the fields that give each generator's size and output map
+
+    def __init__(self, model: GeneratorModel):
+        self.model = model
+        present = [v for v, size in enumerate(model.sizes) if size]
+        self.names = tuple(self.GENERATORS[v] for v in present)
+        self.terms = self._terms(model)       # (generator index, signal: "u" | i of f_i | "1", offset)
+        reached = {generator for generator, _, _ in self.terms}
+        for v in present:
+            if v not in reached:
+                raise ParameterError(f"{self.MAPS[v]}: is zero, so the {self.GENERATORS[v][6:]} generator does not "
+                                     f"reach the output: {self.GENERATORS[v]} is not identifiable")
+        T = len(self.terms)
+        if T > self.MAX_TERMS:
+            raise ParameterError(f"H_theta: the input-output form has {T} terms (beta, each nonzero row of "
+                                 f"H_theta, delta); the determinant regression takes at most {self.MAX_TERMS}")
+        self.D = lcm(*(model.sizes[v] for v in present))
+        self.orders = np.array([self.D // model.sizes[v] for v in present])
+        for v, name, order in zip(present, self.names, self.orders):
+            if order % 2 == 0:
+                raise ParameterError(f"{self.MAPS[v]}: the regression shifts by D = lcm of the generator sizes "
+                                     f"{[model.sizes[w] for w in present]} = {self.D} samples, so it identifies "
+                                     f"{name}^{order}: an even power loses the sign; give the generators sizes "
+                                     "with odd ratios D / d (e.g. all equal)")
+        self.window = model.n + T * self.D + 1
+        slot = {v: i for i, v in enumerate(present)}
+        # Leibniz: permutation -> sign and exponent vector alpha (row j of term t adds j to its variable)
+        perms = np.array(list(permutations(range(T + 1))))
+        signs = np.array([np.linalg.det(np.eye(T + 1)[p]) for p in perms]).round()
+        alphas = np.zeros((len(perms), len(present)), dtype=int)
+        for j in range(T + 1):
+            for q, p in enumerate(perms):
+                if p[j] < T:
+                    alphas[q, slot[self.terms[p[j]][0]]] += j
+        monomials, groups = np.unique(alphas, axis=0, return_inverse=True)
+        self._perms = perms
+        self._weights = np.zeros((len(monomials), len(perms)))
+        self._weights[groups.ravel(), np.arange(len(perms))] = signs
+        self._choose_normaliser(monomials)
+
+    @staticmethod
+    def _terms(model: GeneratorModel) -> list[tuple[int, object, int]]:
+        n = model.n
+        terms = [(0, "u", 0)] if np.any(model.h_beta) else []
+        terms += [(1, i, n - 1 - i) for i in range(n) if np.any(model.H_theta[i])]
+        if np.any(model.H_delta):
+            terms.append((2, "1", 0))
+        return terms
+
+    def _choose_normaliser(self, monomials: np.ndarray) -> None:
+        """``alpha0`` (lowest total degree first) from which every ``G_v`` is recoverable (:meth:`gammas`)."""
+        unit = np.eye(len(self.names), dtype=int)
+        for index in np.argsort(monomials.sum(axis=1), kind="stable"):
+            others = np.delete(np.arange(len(monomials)), index)
+            exponents = monomials[others] - monomials[index]
+            recovery = [self._recovery(exponents, unit[v]) for v in range(len(self.names))]
+            if all(r is not None for r in recovery):
+                self.alpha0, self.others, self.exponents, self.recovery = index, others, exponents, recovery
+                self.p = len(others)
+                self.divisors = tuple(v for v in range(len(self.names)) if np.any(exponents[:, v] < 0))
+                return
+        raise ParameterError("H_theta: no normalisation of the determinant regression recovers every generator "
+                             f"coefficient ({', '.join(self.names)}) from its sigma")
+
+    @staticmethod
+    def _recovery(exponents: np.ndarray, target: np.ndarray):
+        """Indices ``(a,)`` or ``(a, b)`` of sigma entries whose product is ``G_v`` (exponent ``target``)."""
+        for a, e in enumerate(exponents):
+            if np.array_equal(e, target):
+                return (a,)
+        for a in range(len(exponents)):
+            for b in range(a, len(exponents)):
+                if np.array_equal(exponents[a] + exponents[b], target):
+                    return (a, b)
+        return None
+
+    # ------------------------------------------------------------------ the interface of ExampleRegression
+    def sigma(self, *gammas) -> np.ndarray:
+        """``sigma = [G^(alpha - alpha0)]`` with ``G_v = g_v^(D / d_v)``; the divisors must be nonzero."""
+        G = np.array([float(g) ** int(q) for g, q in zip(gammas, self.orders)])
+        for v in self.divisors:
+            if G[v] == 0:
+                raise ParameterError(f"{self.names[v]}: must be nonzero (the regression is divided by it)")
+        return np.array([np.prod([G[v] ** int(e[v]) for v in range(len(G))]) for e in self.exponents])
+
+    def gammas(self, sigma) -> np.ndarray:
+        """Left inverse ``sigma^L``: each ``G_v`` from one entry or a product of two, then its real root."""
+        G = [np.prod([sigma[a] for a in r]) for r in self.recovery]
+        return np.array([_real_root(g, int(q)) for g, q in zip(G, self.orders)])
+
+    def full_coefficients(self, gammas) -> tuple[np.ndarray, ...]:
+        """Generator vectors ``[0, ..., 0, g_•]`` (as :meth:`GeneratorModel.transition` takes them)."""
+        vectors = []
+        for v, size in enumerate(self.model.sizes):
+            vector = np.zeros(size)
+            if size:
+                vector[-1] = gammas[self.names.index(self.GENERATORS[v])]
+            vectors.append(vector)
+        return tuple(vectors)
+
+    def error_bound(self, sigma_hat, sigma_error) -> float:
+        """Bound on ``max |gamma_hat - gamma|`` from ``|sigma_hat - sigma| <= sigma_error`` (entrywise)."""
+        s, e, bounds = np.abs(sigma_hat), np.asarray(sigma_error), []
+        for r, q in zip(self.recovery, self.orders):
+            eG = e[r[0]] if len(r) == 1 else s[r[0]] * e[r[1]] + s[r[1]] * e[r[0]] + e[r[0]] * e[r[1]]
+            bounds.append(eG if q == 1 else 2.0 ** (1 - 1 / q) * eG ** (1 / q))   # Hoelder: odd real root
+        return float(max(bounds))
+
+    def row(self, u, y) -> tuple[float, np.ndarray]:
+        """``(zeta(k), rho(k))`` from ``u``, ``y`` over the window (oldest first)."""
+        T, D, n = len(self.terms), self.D, self.model.n
+        S = np.empty((T + 1, T + 1))
+        for j in range(T + 1):
+            for t, (_, signal, offset) in enumerate(self.terms):
+                index = offset + j * D
+                S[j, t] = u[index] if signal == "u" else 1.0 if signal == "1" else \
+                    self.model.nonlinearity(y[index])[signal]
+            S[j, T] = y[n + j * D]
+        c = self._weights @ np.prod(S[np.arange(T + 1), self._perms], axis=1)
+        return float(c[self.alpha0]), -c[self.others]

@@ -1,6 +1,7 @@
 """Scenario ``discrete-gpebo`` -- paper 000: discrete adaptive observer (GPEBO + DREM) of a generator-driven plant.
 
-Three FMUs: the signal source (``u`` sampled at the communication points,
+The system file ``system.toml`` beside this module (``obsfmu show discrete-gpebo``) holds every
+number of the run.  Three FMUs: the signal source (``u`` sampled at the communication points,
 ``t = k Ts``), the discrete plant of the paper's example (``n = 2``,
 ``x1(k+1) = x2(k) + theta1(k) sin x1(k)``, ``x2(k+1) = beta(k) u(k)``,
 ``gamma_beta = -1``, ``gamma_theta = 1``; bounded, see :mod:`plants.gpebo`)
@@ -34,25 +35,14 @@ from pathlib import Path
 
 import numpy as np
 
-from ...runtime.kinds.gpebo import generator_plant_definition, gpebo_observer_definition
-from ...runtime.kinds.signals import source_definition
-from ...master import Connection
 from ...metrics import NOT_REACHED, time_to_stay_below
 from ...plotting import Curve, Panel, figure
 from ...result import Result
-from .. import Scenario, Summary
+from ...system.papers import paper_scenario
+from .. import Summary
 from .measures import MEASURE, TOLERANCE
 
-
-
-def definitions():
-    return [
-        source_definition("gpebo_input", sines=2, amplitude=[1.0, 1.0], omega=[1.0, 2.0],
-                          description="input of paper 000: offset + sum amplitude[i] sin(omega[i] t) "
-                                      "+ exp_amplitude exp(-exp_rate t), sampled at t = k Ts"),
-        generator_plant_definition("gpebo_plant"),
-        gpebo_observer_definition("gpebo_observer"),
-    ]
+SYSTEM_FILE = Path(__file__).parent / "system.toml"
 
 
 def _recurrence_coefficient(signal: np.ndarray) -> float:
@@ -154,23 +144,6 @@ CLAIM = (
         "at 1 s, the coefficients and the state are exact to round-off within about 20 samples; with "
         "u = 5 they are not identifiable.")
 
-SCENARIO = Scenario(
-    name="discrete-gpebo",
-    description="paper 000: discrete GPEBO + DREM observer, u = sin t + sin 2t (Ts = 1 s, 40 samples)",
-    definitions=definitions,
-    components=[("source", "gpebo_input", {}), ("plant", "gpebo_plant", {}), ("observer", "gpebo_observer", {})],
-    connections=[
-        Connection("source.y", "plant.u"),
-        Connection("source.y", "observer.u"),
-        Connection("plant.y", "observer.y"),
-    ],
-    stop_time=40.0,
-    step=1.0,
-    order="jacobi",
-    coupling="linear",
-    summarize=summarize,
-    plot=plot,
-    not_adaptive="its plant and observer are discrete: they take steps of exactly one sample period Ts",
-    claim=CLAIM,
-    measure=MEASURE,
-)
+SCENARIO = paper_scenario(
+    SYSTEM_FILE, "discrete-gpebo", summarize=summarize, plot=plot, claim=CLAIM, measure=MEASURE,
+    not_adaptive="its plant and observer are discrete: they take steps of exactly one sample period Ts")

@@ -87,7 +87,7 @@ def float64_variables(unzipped):
     return [vr for vr, _ in floats], sum(count for _, count in floats)
 
 
-@pytest.mark.parametrize("model", ["ship_controller", "uio_ftdrem_plant", "gpebo_input"])
+@pytest.mark.parametrize("model", ["ship_controller", "uio_ftdrem_plant", "gpebo_source"])
 def test_fmi3_get_float64_of_every_variable_with_time(importer, build_dir, tmp_path, model):
     """fmusim asks fmi3GetFloat64 for every Float64, ``time`` included (it failed: "16 values requested, more
     than the FMU's 15")."""

@@ -132,7 +132,7 @@ def test_every_fmi2_fmu_passes_the_compliance_checker(fmucheck, every_fmu, tmp_p
     assert len(every_fmu) >= 17
 
 
-GPEBO = ("gpebo_input", "gpebo_plant", "gpebo_observer")  #: FMUs that refuse any step but their sample time
+GPEBO = ("gpebo_source", "gpebo_plant", "gpebo_observer")  #: FMUs that refuse any step but their sample time
 
 
 def gpebo_paths(fixture, request) -> tuple[float, float, dict]:

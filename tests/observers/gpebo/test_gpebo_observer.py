@@ -255,7 +255,12 @@ def test_observer_refuses_bad_configuration():
     with pytest.raises(ParameterError, match="eta_hat0: expected 4 entries"):
         GpeboObserver(model, 1.0, eta_hat0=[0.0, 0.0])
     with pytest.raises(ParameterError, match="model: the input-output regression is derived for paper 000"):
-        GpeboObserver(GeneratorModel.checked(2, [1.0, 0.0], [[1.0, 0.0], [0.0, 1.0]]), 1.0)
+        ExampleRegression(GeneratorModel.checked(2, [1.0, 0.0], [[1.0, 0.0], [0.0, 1.0]]))
+    with pytest.raises(ParameterError, match="h_beta: is zero, so the beta generator does not reach the output"):
+        GpeboObserver(GeneratorModel.checked(2, [0.0, 0.0], [[1.0, 0.0], [0.0, 1.0]]), 1.0)
+    with pytest.raises(ParameterError, match=r"h_beta: the regression shifts by D = lcm .* \[3, 2\] = 6 samples"):
+        GpeboObserver(GeneratorModel.checked(2, [1.0, 0.0, 0.0], [[1.0, 0.0], [0.0, 0.0]]), 1.0,
+                      gamma_hat0=(-0.5, 0.5))
     with pytest.raises(ParameterError, match="gamma_beta: must be nonzero"):
         ExampleRegression.sigma(0.0, 1.0)
     observer = GpeboObserver(model, 1.0)
