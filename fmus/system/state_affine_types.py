@@ -191,12 +191,13 @@ def _generic_signals(dims: dict, scale: float):
     return signals
 
 
-def regressor_rank(block, dims: dict) -> tuple[int, float, np.ndarray]:
+def regressor_rank(block, dims: dict, enough: float = np.inf) -> tuple[int, float, np.ndarray]:
     """Rank of the row-normalised extended regressor (6) along a generic exciting ``(y, u)``.
 
     The filters of :class:`~observers.state_affine.parametrization.Parametrization` are advanced by
     RK4 with step ``1 / max(rates)`` over ``5 / min(rates)`` (at most 2000 steps); at every step the
-    singular values of the regressor with its rows divided by their norms are taken.
+    singular values of the regressor with its rows divided by their norms are taken.  The run stops
+    as soon as ``s_min / s_max`` reaches ``enough`` (a regular model: after a few steps).
 
     Returns
     -------
@@ -235,6 +236,8 @@ def regressor_rank(block, dims: dict) -> tuple[int, float, np.ndarray]:
             ratio = s[-1] / s[0]
             if ratio > best[1]:
                 best = (int(np.sum(s > _RANK_TOLERANCE * s[0])), float(ratio), vt[-1])
+            if ratio >= enough:
+                break
     return best
 
 
@@ -246,7 +249,7 @@ def _unknown_labels(dims: dict) -> list[tuple[str, str]]:
 
 
 def _require_exciting(block, dims: dict) -> None:
-    rank, ratio, null = regressor_rank(block, dims)
+    rank, ratio, null = regressor_rank(block, dims, enough=_RANK_TOLERANCE)
     if ratio >= _RANK_TOLERANCE or ratio < 0:       # exciting, or inconclusive: accepted
         return
     labels = _unknown_labels(dims)
