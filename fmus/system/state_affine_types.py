@@ -41,15 +41,13 @@ from .values import MAX_DIMENSION
 
 __all__ = ["sample_points", "regressor_rank"]
 
-#: the functions of (y, u), in the order of the paper, and their meaning in messages
-_OF_SIGNALS = ("Lambda", "Psi", "w", "phi", "c")
 _RANK_TOLERANCE = 1e-9     #: smallest / largest singular value of the normalised regressor below this: singular
 
 
 def sample_points(ny: int, nu: int) -> list[tuple[np.ndarray, np.ndarray]]:
     """The ``(y, u)`` at which the functions are checked: the observer's probe ``(0.5, 0.5)`` first."""
-    bases = ((0.5, 0.5), (-0.7, 1.1), (1.3, -0.4))
-    return [(y0 + 0.1 * np.arange(ny), u0 + 0.1 * np.arange(nu)) for y0, u0 in bases]
+    others = [(y0 + 0.1 * np.arange(ny), u0 + 0.1 * np.arange(nu)) for y0, u0 in ((-0.7, 1.1), (1.3, -0.4))]
+    return [(np.full(ny, 0.5), np.full(nu, 0.5))] + others
 
 
 # ------------------------------------------------------------------ shapes and options

@@ -151,3 +151,26 @@ def test_the_cli_refuses_with_exit_2(tmp_path, capsys):
     assert cli.main(["build", "--config", str(path), "--out", str(tmp_path / "build")]) == 2
     error = capsys.readouterr().err
     assert "the pair (Lambda, C) is not observable" in error and len(error.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize("example", ["pendulum", "chemostat"])
+def test_the_paper_files_write_the_papers_functions_bit_for_bit(example):
+    """The scenarios' expressions give exactly the floats of plants.state_affine's functions (so the scenario
+    CSVs stay bit for bit): 500 random points per function."""
+    from pathlib import Path
+
+    import plants.state_affine as paper
+    from fmus.runtime.callables import resolve
+    from fmus.system.load import load_system
+
+    path = Path(__file__).resolve().parents[3] / "fmus" / "scenarios" / f"state_affine_{example}" / "system.toml"
+    options = load_system(path).components["observer"].definitions[0].options
+    rng = np.random.default_rng(4)
+    names = [name for name in ("Lambda", "Psi", "w", "phi", "c", "phi_L") if name in options]
+    assert len(names) == (6 if example == "chemostat" else 5)
+    for name in names:
+        mine, theirs = resolve(options[name], name), getattr(paper, f"{example}_{name}")
+        for _ in range(500):
+            size = 2 if name == "phi_L" else 1
+            a, b = rng.normal(size=size) * 3, np.abs(rng.normal(size=size))
+            assert np.array_equal(np.asarray(mine(a, b)), np.asarray(theirs(a, b))), (name, a, b)
