@@ -88,6 +88,9 @@ def _functions(values: dict, dims: dict, constant: bool) -> dict[str, dict]:
     """The expression functions of the file: ``(y, u)`` for (2), (3); ``(chi, theta)`` for ``phi_L``."""
     q, p, l = dims["q"], dims["p"], dims["l"]
     constants = values["constants"] or {}
+    clash = sorted(set(constants) & {"t", "y", "u", "chi", "theta"})
+    if clash:
+        raise ParameterError(f"constants: {clash[0]!r} is the name of an argument of the functions (y, u; chi, theta)")
     signals = [("y", dims["ny"]), ("u", dims["nu"])]
     texts = {"Lambda": None if constant else values["Lambda"], "Psi": values["Psi"],
              "w": values["w"] if values["w"] is not None else [0.0] * q, "phi": values["phi"], "c": values["c"],
@@ -193,7 +196,7 @@ def regressor_rank(block, dims: dict, enough: float = np.inf) -> tuple[int, floa
     """Rank of the row-normalised extended regressor (6) along a generic exciting ``(y, u)``.
 
     The filters of :class:`~observers.state_affine.parametrization.Parametrization` are advanced by
-    RK4 with step ``1 / max(rates)`` over ``5 / min(rates)`` (at most 2000 steps); at every step the
+    RK4 with step ``1 / max(rates)`` over ``5 / min(rates)`` (at most 500 steps); at every step the
     singular values of the regressor with its rows divided by their norms are taken.  The run stops
     as soon as ``s_min / s_max`` reaches ``enough`` (a regular model: after a few steps).
 
@@ -206,7 +209,7 @@ def regressor_rank(block, dims: dict, enough: float = np.inf) -> tuple[int, floa
     """
     parametrization, model = block.parametrization, block.model
     rates = parametrization.rates
-    dt, steps = 1.0 / rates.max(), min(2000, int(np.ceil(5.0 * rates.max() / rates.min())))
+    dt, steps = 1.0 / rates.max(), min(500, int(np.ceil(5.0 * rates.max() / rates.min())))
     signals = _generic_signals(dims, float(np.sqrt(rates.min() * rates.max())))
 
     def derivative(t, state):

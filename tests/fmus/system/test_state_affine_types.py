@@ -174,3 +174,7 @@ def test_the_paper_files_write_the_papers_functions_bit_for_bit(example):
             size = 2 if name == "phi_L" else 1
             a, b = rng.normal(size=size) * 3, np.abs(rng.normal(size=size))
             assert np.array_equal(np.asarray(mine(a, b)), np.asarray(theirs(a, b))), (name, a, b)
+
+
+def test_a_constant_named_as_an_argument_is_refused():
+    assert re.search(r"observer\.constants: 'y' is the name of an argument", _refusal(STATEMENT2, constants="{ y = 1 }"))
