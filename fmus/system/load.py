@@ -252,7 +252,7 @@ def _parse(text: str, path: str, folder: Path, locator: Locator) -> SystemSpec:
     top, _ = _fields("", {k: v for k, v in data.items() if k not in _SECTIONS and k != "connections"},
                      TOP_FIELDS[:3])
     _identifier("name", top["name"])
-    context = Context(prefix="", name=top["name"], folder=folder)
+    context = Context(prefix="", name=top["name"], time_unit=top["time_unit"], folder=folder)
     components = _components(data, context, locator, path)
     experiment = _experiment(data)
     connections = check_connections(data.get("connections", []), components)

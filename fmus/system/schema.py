@@ -76,7 +76,8 @@ class Field:
 class Context:
     """What a ``define`` function may know beyond its own fields.
 
-    ``prefix`` names the component in messages (``components.plant.``); ``name`` is the system's;
+    ``prefix`` names the component in messages (``components.plant.``); ``name`` is the system's,
+    ``time_unit`` its unit of time;
     ``others`` maps every component defined before this one to its ``(kind, values)``; ``folder`` is the
     system file's folder (relative paths are read from there); ``notes`` collects what the build prints
     (designed gains and poles); ``rates`` the fastest rates of the components' dynamics and signals
@@ -85,6 +86,7 @@ class Context:
 
     prefix: str
     name: str = ""
+    time_unit: str = "s"
     others: dict[str, tuple[str, dict]] = field(default_factory=dict)
     folder: Path = Path(".")
     notes: list[str] = field(default_factory=list)

@@ -1,7 +1,8 @@
 """Kinds for paper 004: the DREM observer for state-affine forms and its two example plants.
 
 * ``state-affine-observer`` -- :class:`~observers.state_affine.StateAffineObserver`; the user's
-  functions are ``"module:function"`` references in the definition's options (resolved with
+  functions are ``"module:function"`` references or expression functions (:mod:`fmus.runtime.functions`,
+  the system file's ``state-affine-observer``) in the definition's options (resolved with
   :func:`fmus.runtime.callables.resolve`, never evaluated); a constant ``Lambda`` (Statement 2) and its
   ``C``, ``L`` are parameters, checked when the FMU is instantiated (observability of
   ``(Lambda, C)``, bounded filters).
@@ -48,7 +49,7 @@ def _budget(p):
     return p.get("substep_budget", DEFAULT_SUBSTEP_BUDGET)
 
 
-def observer_definition(model_name: str, *, dims: dict[str, int], functions: dict[str, str], rates,
+def observer_definition(model_name: str, *, dims: dict[str, int], functions: dict[str, str | dict], rates,
                         gamma: float, gamma_x: float, mu: float = 0.98, max_substep: float, chi_hat0=None,
                         theta_hat0=None, Lambda=None, C=None, L=None, units: dict | None = None,
                         converged_tolerance: float = 1e-3, theta_bound: float = 100.0,
@@ -60,8 +61,9 @@ def observer_definition(model_name: str, *, dims: dict[str, int], functions: dic
     dims : dict
         ``q, p, l, n, ny, nu`` (see :class:`~observers.state_affine.StateAffineModel`).
     functions : dict
-        ``"module:function"`` references for ``Psi`` (if ``p > 0``), ``w``, ``phi``, ``c``,
-        ``phi_L`` and, for Statement 1, ``Lambda``.
+        ``"module:function"`` references or expression functions
+        (:func:`fmus.runtime.functions.expression_function`) for ``Psi`` (if ``p > 0``), ``w``,
+        ``phi``, ``c``, ``phi_L`` and, for Statement 1, ``Lambda``.
     Lambda, C, L : array_like, optional
         Statement 2: the constant ``Lambda`` (q x q), ``y = C chi`` and the gain ``L``; they
         become parameters ``Lambda[i,j]``, ``C[..]``, ``L[..]``.

@@ -21,6 +21,7 @@ from fmus.scenarios import state_affine_chemostat as chemostat_scenario
 from fmus.scenarios import state_affine_common as common
 from fmus.scenarios import state_affine_pendulum as pendulum_scenario
 from fmus.scenarios.state_affine_common import reference as ref
+from fmus.system.load import load_system
 
 TOLERANCE = 1e-4     # acceptance: theta_hat and x_hat to 1e-4
 
@@ -39,16 +40,30 @@ def test_every_fmu_is_valid(fmus):
         assert validate_fmu(str(path)) == [], path
 
 
+def _file(scenario) -> dict:
+    """The components' field values of the scenario's system file."""
+    spec = load_system(scenario.SYSTEM_FILE)
+    return {name: component.values for name, component in spec.components.items()}
+
+
 def test_scenario_defaults_are_the_reference_settings():
-    """The reference is computed for the scenarios' settings (no silent drift between the two)."""
-    assert pendulum_scenario.TRUE == ref.PENDULUM["true"] and pendulum_scenario.X0 == ref.PENDULUM["x0"]
-    assert pendulum_scenario.RATES == ref.PENDULUM["rates"] and pendulum_scenario.INPUT == ref.PENDULUM["u"]
-    assert (pendulum_scenario.GAMMA, pendulum_scenario.GAMMA_X) == (ref.PENDULUM["gamma"], ref.PENDULUM["gamma_x"])
-    np.testing.assert_allclose(pendulum_scenario.injection_gain().ravel(), [0.0, ref.PENDULUM["omega_L"] ** 2],
-                               atol=1e-12)
-    assert chemostat_scenario.S_IN == ref.CHEMOSTAT["true"]["S_in"] and chemostat_scenario.X0 == ref.CHEMOSTAT["x0"]
-    assert chemostat_scenario.RATES == ref.CHEMOSTAT["rates"] and chemostat_scenario.INPUT == ref.CHEMOSTAT["u"]
-    assert (chemostat_scenario.GAMMA, chemostat_scenario.GAMMA_X) == (ref.CHEMOSTAT["gamma"], ref.CHEMOSTAT["gamma_x"])
+    """The reference is computed for the settings of the scenarios' files (no silent drift between the two)."""
+    pendulum, settings = _file(pendulum_scenario), ref.PENDULUM
+    assert dict(a=pendulum["plant"]["a"], b=pendulum["plant"]["b"]) == settings["true"]
+    assert pendulum["plant"]["x0"].tolist() == settings["x0"]
+    assert pendulum["observer"]["rates"].tolist() == settings["rates"]
+    assert dict(amplitude=pendulum["source"]["amplitude"].tolist(),
+                omega=pendulum["source"]["omega"].tolist()) == settings["u"]
+    assert (pendulum["observer"]["gamma"], pendulum["observer"]["gamma_x"]) == (settings["gamma"], settings["gamma_x"])
+    L = next(p for p in get("state-affine-pendulum").definitions()[2].parameters if p.name == "L")
+    np.testing.assert_allclose(L.value, [0.0, settings["omega_L"] ** 2], atol=1e-12)
+    chemostat, settings = _file(chemostat_scenario), ref.CHEMOSTAT
+    assert chemostat["plant"]["S_in"] == settings["true"]["S_in"] and chemostat["plant"]["x0"].tolist() == settings["x0"]
+    assert chemostat["observer"]["rates"].tolist() == settings["rates"]
+    assert dict(offset=chemostat["source"]["offset"], amplitude=chemostat["source"]["amplitude"].tolist(),
+                omega=chemostat["source"]["omega"].tolist()) == settings["u"]
+    assert (chemostat["observer"]["gamma"], chemostat["observer"]["gamma_x"]) == (settings["gamma"],
+                                                                                  settings["gamma_x"])
 
 
 @pytest.mark.parametrize("scenario, example, stop", [(pendulum_scenario, "pendulum", 20.0),
