@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from observers.checks import ParameterError
-from observers.uio import UIOFiniteTimeObserver, UIOSettings, check_relative_degree, relative_degree, uio_gain
+from observers.uio import UIOFiniteTimeObserver, UIOSettings, check_relative_degree, relative_degree, uio_gain, uio_matrices
 from plants.uio import DisturbedLTVPlant
 
 from ..config import require_bounded_transient
@@ -128,6 +128,12 @@ def _gain(values: dict, plant: dict, r: int) -> tuple[np.ndarray, bool]:
         raise ParameterError(f"poles: give exactly one of 'poles' (eig(F), F = M - L C) or 'L', got "
                              f"{chosen or 'none'}")
     if chosen == ["L"]:
+        _, M = uio_matrices(plant["A"], plant["B"], plant["C"], r)
+        eigenvalues = np.linalg.eigvals(M - np.outer(values["L"], plant["C"])) if np.size(values["L"]) == \
+            np.size(plant["C"]) else np.zeros(0)
+        if np.any(eigenvalues.real >= 0):
+            raise ParameterError(f"L: eig(M - L C) = [{poles_text(eigenvalues)}] not all in the open left "
+                                 "half-plane; F = M - L C must be Hurwitz (x_tilde' = F x_tilde, (6))")
         return values["L"], False
     poles = _complex_poles(values["poles"])
     unstable = poles[poles.real >= 0]
@@ -155,6 +161,11 @@ def _settings(values: dict, rates=None) -> UIOSettings:
 
 def _define_observer(model_name: str, values: dict, context: Context) -> list:
     name = values["plant"]
+    gamma = np.asarray(values["gamma"], dtype=float)
+    if np.any(gamma <= 0):
+        stage = int(np.argmax(gamma <= 0)) + 1
+        raise ParameterError(f"gamma: entry {stage} (stage {stage}) is {gamma[stage - 1]:g}; every FT-DREM gain "
+                             "must be > 0")
     plant = _plant_of(values, context)
     N = _harmonics(values, plant, name)
     r = _order(values, plant, name)
