@@ -15,7 +15,8 @@ from __future__ import annotations
 import numpy as np
 
 from observers.checks import ParameterError
-from observers.uio import UIOFiniteTimeObserver, UIOSettings, check_relative_degree, relative_degree, uio_gain, uio_matrices
+from observers.uio import (UIOFiniteTimeObserver, UIOSettings, check_relative_degree, relative_degree, uio_gain,
+                           uio_matrices)
 from plants.uio import DisturbedLTVPlant
 
 from ..config import require_bounded_transient

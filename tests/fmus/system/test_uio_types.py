@@ -73,7 +73,8 @@ REFUSED = {
 }
 
 #: a third-order plant with relative degree 2 and its zero at +1 (C (sI - A)^-1 B = (1 - s) / ...)
-NON_MINIMUM_PHASE = changed("A = [[0.0, 1.0], [-2.0, 0.0]]", "A = [[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [-2.0, -3.0, -1.0]]",
+NON_MINIMUM_PHASE = changed("A = [[0.0, 1.0], [-2.0, 0.0]]",
+                            "A = [[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [-2.0, -3.0, -1.0]]",
                             "B = [0.0, 1.0]", "B = [0.0, 0.0, 1.0]", "C = [2.0, 0.0]", "C = [1.0, -1.0, 0.0]",
                             "H = [[1.0, 0.0], [0.0, 1.0]]\n", "", "Gamma = [[0.0, 0.0], [0.0, 0.0]]", "",
                             "xi0 = [0.0, -1.0]", "xi0 = [0.0, 0.0, -1.0]", "x0 = [-1.0, 1.0]", "x0 = [1.0, 0.0, 0.0]",
@@ -143,7 +144,8 @@ def test_the_paper_file_makes_the_definitions_the_python_scenario_made():
 
 
 def test_defaults_relative_degree_B_bar_and_the_rates_not_given():
-    text = changed("r = 2\n", "", "B_bar = [1.0, 1.0]", "", "harmonics = 1", "", "mu = 0.98", "mu = 0.98\nrates2 = [8.0, 4.0]")
+    text = changed("r = 2\n", "", "B_bar = [1.0, 1.0]", "", "harmonics = 1", "", "mu = 0.98",
+                   "mu = 0.98\nrates2 = [8.0, 4.0]")
     parameters = _observer_parameters(parse_system(text, "uio.toml"))
     assert parameters["r"].ravel().tolist() == [2.0]                                 # C B = 0, C A B = 2
     np.testing.assert_array_equal(parameters["B_bar"], [0.0, 1.0])       # B / |B|^2
