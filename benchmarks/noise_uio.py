@@ -7,7 +7,8 @@ estimate within its tolerance of ``[[report.compare]]``) against the noise level
 
     PYTHONPATH=. .venv/bin/python benchmarks/noise_uio.py [--out results/noise-uio] [--report-only]
 
-About 20 runs of ~10 s (2 workers: ~3 min).  Rerunning reuses the stored samples (the sweep resumes).
+16 runs of ~10 s alone (~45-90 s each on a loaded machine).  Rerunning reuses the stored samples (the sweep
+resumes) and recomputes failed ones.
 """
 
 from __future__ import annotations
@@ -22,7 +23,9 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "uio_third_order.toml"
 FIGURE = ROOT / "docs" / "figures" / "noise_uio.png"
-LEVELS = [0.0, 1e-7, 1e-6, 1e-5, 1e-4]
+#: noise levels (std on y); 1e-4 is left out: those runs exceed 600 s of wall time each (stage 4 observes a
+#: wildly wrong identified plant, its RK4 sub-steps multiply), see docs/adaptive-uio.md
+LEVELS = [0.0, 1e-7, 1e-6, 1e-5]
 SEEDS = [1, 2, 3, 4]
 STOP = 20.0
 #: final errors drawn: (metric of the sweep, label)
@@ -33,7 +36,7 @@ ERRORS = [("final_error observer.omega_hat", "omega"), ("final_error observer.xi
 def sweep(out: Path, build: Path, workers: int) -> None:
     command = [sys.executable, "-m", "fmus.cli", "sweep", "--config", str(EXAMPLE),
                "--vary", f"sensor.std={LEVELS}", "--vary", f"sensor.seed={SEEDS}", "--stop-time", str(STOP),
-               "--workers", str(workers), "--no-progress", "--no-plots", "--out", str(out), "--build-dir", str(build)]
+               "--workers", str(workers), "--no-progress", "--no-plots", "--retry-failed", "--out", str(out), "--build-dir", str(build)]
     subprocess.run(command, check=True, cwd=ROOT)
 
 
@@ -61,6 +64,8 @@ def table(samples: list[dict]) -> list[str]:
     lines = ["std | " + " | ".join(label for _, label in ERRORS) + " | converged (all within tolerance) at"]
     for level in LEVELS:
         chosen = [r for r in samples if r["sensor.std"] == level and r["status"] == "ok"]
+        if not chosen:
+            continue
         cells = [f"{np.nanmin([value(r, m) for r in chosen]):.1e} .. {np.nanmax([value(r, m) for r in chosen]):.1e}"
                  for m, _ in ERRORS]
         times = sorted(convergence(r) for r in chosen)
@@ -104,7 +109,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     if not args.report_only:
         sweep(args.out, args.build_dir, args.workers)
-    samples = rows(args.out)
+    samples = [r for r in rows(args.out) if r["sensor.std"] in LEVELS]
     print("\n".join(table(samples)))
     plot(samples, FIGURE)
     print(f"wrote {FIGURE} ({FIGURE.stat().st_size // 1024} kB)")
