@@ -1,6 +1,7 @@
 """Scenario ``uio-ftdrem`` -- paper 003: state, parameters and sinusoidal disturbance from ``y`` alone.
 
-Two FMUs, stepped in this order (Gauss-Seidel): the plant (1)
+Defined by ``system.toml`` in this folder (``obsfmu show uio-ftdrem``); this module adds only the
+paper's summary, figure, sweep measure and claim.  Two FMUs, stepped in this order (Gauss-Seidel): the plant (1)
 ``x' = A x + B [theta^T x + f]``, ``y = C x``, with ``A = [[0, 1], [-2, 0]]``, ``B = [0; 1]``,
 ``C = [2, 0]``, ``x(0) = [-1; 1]``, ``theta = H xi``, ``H = I``, ``Gamma = 0``,
 ``xi(0) = [0; -1]``, ``f = 5 sin t``; and the observer with the paper's tuning: ``L`` placing
@@ -27,31 +28,29 @@ import numpy as np
 
 from observers.uio import UIODesign, uio_gain
 
-from ...runtime.kinds.uio import ltv_plant_definition, uio_observer_definition
-from ...master import Connection
 from ...metrics import format_time, time_to_stay_below
 from ...plotting import Curve, Panel, figure
 from ...result import Result
-from .. import Scenario, Summary, changed_parameters
+from ...system.load import load_system
+from ...system.papers import paper_scenario
+from ...system.uio_types import plant_arrays
+from .. import Summary, changed_parameters
 from .measures import MEASURE
 
 HERE = Path(__file__).parent
+SYSTEM_FILE = HERE / "system.toml"
 #: the monolithic Radau reference, written by ``python -m fmus.scenarios.uio_ftdrem.reference --write fmus/scenarios/uio_ftdrem/reference.csv``
 REFERENCE = HERE / "reference.csv"
 
-A = [[0.0, 1.0], [-2.0, 0.0]]
-B = [0.0, 1.0]
-C = [2.0, 0.0]
-R = 2
-POLES = [-0.5, -0.3]
-H = np.eye(2)
-XI0 = [0.0, -1.0]
-X0 = [-1.0, 1.0]
-DISTURBANCE = {"amplitude": [5.0], "omega": [1.0], "phase": [0.0]}
-Z0 = [-3.0, 3.0]
-B_BAR = [1.0, 1.0]
-XI0_FREE = [0.0, 1.0]            # theta_1 = 0 is known (it multiplies y)
-XI0_KNOWN = [0.0, 0.0]
+_FILE = load_system(SYSTEM_FILE)
+_PLANT = plant_arrays(_FILE.components["plant"].values)
+_OBSERVER = _FILE.components["observer"].values
+#: the paper's example as the system file gives it (benchmarks and tests use these)
+A, B, C, H, XI0, X0 = (_PLANT[key] for key in ("A", "B", "C", "H", "xi0", "x0"))
+DISTURBANCE = {key: _PLANT[key] for key in ("amplitude", "omega", "phase")}
+R = _OBSERVER["r"]
+POLES = _OBSERVER["poles"]
+Z0, B_BAR, XI0_FREE, XI0_KNOWN = (_OBSERVER[key] for key in ("z0", "B_bar", "xi0_free", "xi0_known"))
 #: acceptance over the last 20 % of the run
 TOLERANCES = {"omega": 1e-4, "xi0": 1e-3, "f": 2e-3, "x_relative": 1e-5, "x_tilde0": 1e-6}
 
@@ -59,14 +58,6 @@ TOLERANCES = {"omega": 1e-4, "xi0": 1e-3, "f": 2e-3, "x_relative": 1e-5, "x_tild
 def gain() -> np.ndarray:
     """``L = place(M^T, C^T, [-0.5, -0.3])^T``."""
     return uio_gain(A, B, C, R, POLES)
-
-
-def definitions():
-    return [
-        ltv_plant_definition("uio_ftdrem_plant", A, B, C, H, np.zeros((2, 2)), XI0, X0, **DISTURBANCE,
-                             description="paper 003 plant x' = A x + B [theta^T x + f], y = C x (+ noise)"),
-        uio_observer_definition("uio_ftdrem_observer", A, B, C, R, gain(), H, B_BAR, Z0, XI0_FREE, XI0_KNOWN),
-    ]
 
 
 def true_x_tilde0(x0, z0=Z0) -> np.ndarray:
@@ -219,17 +210,8 @@ CLAIM = (
         "about 0.055 s; stages 2 and 3 then converge asymptotically: omega to 1e-4 by about 3.4 s, xi(0) by "
         "3.6 s, f to 1e-3 by 3.7 s.")
 
-SCENARIO = Scenario(
-    name="uio-ftdrem",
-    description="paper 003: state, xi(0), omega and f = 5 sin t from y (UIO + FT-DREM), 0..20 s",
-    definitions=definitions,
-    components=[("plant", "uio_ftdrem_plant", {}), ("observer", "uio_ftdrem_observer", {})],
-    connections=[Connection("plant.y", "observer.y")],
-    stop_time=20.0,
-    step=1e-3,
-    order="gauss-seidel",
-    coupling="linear",
-    output_interval=1e-2,
+SCENARIO = paper_scenario(
+    SYSTEM_FILE, "uio-ftdrem",
     summarize=summarize,
     plot=plot,
     not_adaptive=("step doubling cannot measure this observer's error: its finite-time DREM laws hold their "
