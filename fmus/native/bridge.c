@@ -297,7 +297,8 @@ static PyObject *native_within_function(void)
 static PyObject *new_instance(Component *c)
 {
     PyObject *instance = create_instance(c);
-    PyObject *within = instance ? native_within_function() : NULL;
+    if (instance == NULL) return NULL;   /* its exception stays set: the caller logs it */
+    PyObject *within = native_within_function();
     if (within == NULL || PyObject_SetAttrString(instance, "native_within", within) != 0) PyErr_Clear();
     Py_XDECREF(within);
     return instance;
