@@ -17,9 +17,10 @@ import os
 import signal
 import sys
 import threading
+from contextlib import contextmanager
 
 __all__ = ["StopRequest", "Terminated", "interrupted_status", "install_handlers", "restore_handlers",
-           "raise_terminated", "raise_if_terminated", "STOP_SIGNALS", "EXIT_INTERRUPTED"]
+           "raise_terminated", "raise_if_terminated", "signals_held", "STOP_SIGNALS", "EXIT_INTERRUPTED"]
 
 EXIT_INTERRUPTED = 130  #: 128 + SIGINT, what a shell reports for a Ctrl-C
 #: the signals that stop a command cleanly: Ctrl-C, what timeout / CI / batch schedulers send, a closed terminal
@@ -70,6 +71,22 @@ def raise_if_terminated() -> None:
     """Raise again the :class:`Terminated` of a signal that some code swallowed (see the module's docstring)."""
     if _raised is not None:
         raise Terminated(_raised)
+
+
+@contextmanager
+def signals_held():
+    """Run the block with Ctrl-C, SIGTERM and SIGHUP only noted, then give the first one to the handler that
+    was there: for work an exception must not cut halfway (zipfile cut between opening a member and writing
+    it raises ValueError over the interruption when closed; a temporary folder's removal cut stays behind)."""
+    raise_if_terminated()
+    held = []
+    previous = install_handlers(lambda signum, frame: held.append(signum))
+    try:
+        yield
+    finally:
+        restore_handlers(previous)
+        if held:
+            signal.raise_signal(held[0])
 
 
 class StopRequest:
