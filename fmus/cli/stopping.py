@@ -8,7 +8,7 @@ callbacks.  fmpy's ``read_model_description`` is both -- lxml's ``except: pass``
 the zip member it never closes, closed by the finalizer -- and the builder reads every FMU it has just
 written with it.  So :func:`raise_terminated` remembers the signal until the command reports it
 (:func:`interrupted_status`), and :func:`raise_if_terminated` raises it again where the command goes on
-to a run and where it ends.
+to a run or to the next FMU's build (:func:`signals_held`) and where it ends.
 """
 
 from __future__ import annotations
