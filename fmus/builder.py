@@ -32,6 +32,7 @@ from xml.etree.ElementTree import tostring
 
 from . import fmi3, native
 from .bundle import package_init, relocate
+from .cli.stopping import signals_held
 from .output import file_mode
 from .runtime.definition import FmuDefinition, valid_identifier
 from .runtime.slave import versions
@@ -148,7 +149,7 @@ def build_fmu(definition: FmuDefinition, out_dir: Path | str, extra_modules=(), 
     :mod:`fmus.runtime.callables`); they are bundled next to the project packages.
     ``fmi_version`` 3 builds an FMI 3.0 FMU of the same definition (:mod:`fmus.fmi3`).
     ``standalone``: the FMU carries the Python runtime its code imports (:mod:`fmus.standalone`).
-    The FMU file appears only once it is complete.
+    The FMU file appears only once it is complete; Ctrl-C, SIGTERM or SIGHUP wait until it is.
     """
     fmi_version = fmi3.check_version(fmi_version)
     if not valid_identifier(definition.model_name):
@@ -168,50 +169,51 @@ def build_fmu(definition: FmuDefinition, out_dir: Path | str, extra_modules=(), 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     binaries = f"binaries/{native.platform_folder() if fmi_version == 2 else fmi3.platform_tuple()}"
-    with tempfile.TemporaryDirectory(prefix="obsfmu_build_") as temp:
-        resources = Path(temp)
-        (resources / f"{model}.json").write_text(definition.to_json())
-        description, guid = _model_description(definition, resources)
-        extra = {}
-        if fmi_version == 3:
-            from .fmi3.description import describe
-            description, table = describe(definition, description)
-            extra[f"resources/{fmi3.TABLE}"] = table.encode()
-        record = _record(guid=guid, package=package, slave_module=f"_slave_{model}", slave_class=model,
-                         bridge=f"{binaries}/{native.bridge_name()}", **python)
-        files = {
-            "modelDescription.xml": description,
-            f"resources/{model}.json": definition.to_json().encode(),
-            f"resources/{versions.BUILD_INFO}": json.dumps({
-                "source_hash": source_hash(definition, extra_modules, fmi_version, standalone),
-                "built_with": versions.running()}).encode(),
-            "resources/obsfmu_native.txt": record.encode(),
-            "resources/obsfmu_bootstrap.py": native.BOOTSTRAP.read_bytes(),
-            f"resources/{package}/_slave_{model}.py": SLAVE_TEMPLATE.format(model=model, json=f"{model}.json").encode(),
-            **{f"resources/{name}": data for name, data in bundled.items()},
-            **extra,
-        }
-        if standalone:
-            from .standalone import with_runtime
-            files = with_runtime(files, "resources/obsfmu_native.txt")
-    handle, name = tempfile.mkstemp(prefix=f".{model}.", suffix=".fmu.partial", dir=out_dir)
-    os.fchmod(handle, file_mode())      # the mode of every other result (umask), not mkstemp's 0600
-    os.close(handle)
-    partial = Path(name)  # unique: concurrent builds of the same FMU never write one file
-    try:
-        with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as archive:
-            for name, data in files.items():
-                if isinstance(data, Path):
-                    archive.write(data, name)
-                else:
-                    archive.writestr(name, data)
-            archive.write(loader, f"{binaries}/{model}{loader.suffix}")
-            archive.write(bridge, f"{binaries}/{native.bridge_name()}")
-        target = out_dir / f"{model}.fmu"
-        os.replace(partial, target)
-    finally:
-        partial.unlink(missing_ok=True)
-    return target
+    with signals_held():    # built whole or not at all: a stop waits for the end of this FMU (fmus.cli.stopping)
+        with tempfile.TemporaryDirectory(prefix="obsfmu_build_") as temp:
+            resources = Path(temp)
+            (resources / f"{model}.json").write_text(definition.to_json())
+            description, guid = _model_description(definition, resources)
+            extra = {}
+            if fmi_version == 3:
+                from .fmi3.description import describe
+                description, table = describe(definition, description)
+                extra[f"resources/{fmi3.TABLE}"] = table.encode()
+            record = _record(guid=guid, package=package, slave_module=f"_slave_{model}", slave_class=model,
+                             bridge=f"{binaries}/{native.bridge_name()}", **python)
+            files = {
+                "modelDescription.xml": description,
+                f"resources/{model}.json": definition.to_json().encode(),
+                f"resources/{versions.BUILD_INFO}": json.dumps({
+                    "source_hash": source_hash(definition, extra_modules, fmi_version, standalone),
+                    "built_with": versions.running()}).encode(),
+                "resources/obsfmu_native.txt": record.encode(),
+                "resources/obsfmu_bootstrap.py": native.BOOTSTRAP.read_bytes(),
+                f"resources/{package}/_slave_{model}.py": SLAVE_TEMPLATE.format(model=model, json=f"{model}.json").encode(),
+                **{f"resources/{name}": data for name, data in bundled.items()},
+                **extra,
+            }
+            if standalone:
+                from .standalone import with_runtime
+                files = with_runtime(files, "resources/obsfmu_native.txt")
+        handle, name = tempfile.mkstemp(prefix=f".{model}.", suffix=".fmu.partial", dir=out_dir)
+        os.fchmod(handle, file_mode())      # the mode of every other result (umask), not mkstemp's 0600
+        os.close(handle)
+        partial = Path(name)  # unique: concurrent builds of the same FMU never write one file
+        try:
+            with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as archive:
+                for name, data in files.items():
+                    if isinstance(data, Path):
+                        archive.write(data, name)
+                    else:
+                        archive.writestr(name, data)
+                archive.write(loader, f"{binaries}/{model}{loader.suffix}")
+                archive.write(bridge, f"{binaries}/{native.bridge_name()}")
+            target = out_dir / f"{model}.fmu"
+            os.replace(partial, target)
+        finally:
+            partial.unlink(missing_ok=True)
+        return target
 
 
 def is_current(fmu: Path, definition: FmuDefinition, extra_modules=(), fmi_version: int = 2,

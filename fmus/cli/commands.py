@@ -75,7 +75,7 @@ def cmd_run(args) -> int:
             print(f"wrote {outcome.csv}")
         if figures and scenario.plot:
             print("wrote " + ", ".join(str(p) for p in scenario.plot(result, figures[0])))
-    return 0
+    return stop.status      # a stop asked while the files were finished: they are complete, the exit code says it
 
 
 def cmd_export(args) -> int:
@@ -113,7 +113,7 @@ def run_and_report(out: Path, build_dir: Path, names: list[str], jobs: int = 1, 
     (or of the scenarios ``shown()`` names)."""
     from .. import report
     with StopRequest() as stop:
-        status = run_into(out, build_dir, names, stop, jobs)
+        status = run_into(out, build_dir, names, stop, jobs) or stop.status   # no report once a stop was asked
         if status:
             return status
         print(f"\nwrote {report.write_report(out, build_dir, shown() if shown else None)}")

@@ -5,7 +5,6 @@ file system; 128 + the signal when interrupted)."""
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
 from collections.abc import Callable
 
@@ -16,7 +15,7 @@ from ..master import SimulationError
 from ..output import OutputError
 from .args import EXIT_USAGE, Parser
 from .commands import SUBCOMMANDS as COMMANDS
-from .stopping import STOP_SIGNALS, install_handlers, interrupted_status, raise_terminated, restore_handlers
+from .stopping import install_handlers, interrupted_status, raise_if_terminated, raise_terminated, restore_handlers
 from .subcommand import Subcommand
 
 __all__ = ["main", "parser", "register", "SUBCOMMANDS"]
@@ -58,10 +57,12 @@ def _silence_stdout() -> None:
 
 def main(argv: list[str] | None = None) -> int:
     """``obsfmu ...``; returns the exit code (2: a user mistake, 128 + the signal: interrupted)."""
-    previous = install_handlers(raise_terminated, tuple(s for s in STOP_SIGNALS if s != signal.SIGINT))
+    previous = install_handlers(raise_terminated, ignored_too=())
     try:
         args = parser().parse_args(argv)
-        return args.func(args)
+        status = args.func(args)
+        raise_if_terminated()   # a signal some library swallowed still ends the command with 128 + the signal
+        return status
     except SystemExit as exc:  # argparse: --help (0) or a bad argument (2, message already printed)
         return exc.code if isinstance(exc.code, int) else EXIT_USAGE
     except (ParameterError, SimulationError, OutputError) as exc:

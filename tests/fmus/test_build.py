@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import signal
+import tempfile
 import zipfile
 from pathlib import Path
 
@@ -81,3 +83,35 @@ def test_two_scenarios_defining_one_fmu_differently_are_refused(monkeypatch, tmp
     with pytest.raises(SimulationError, match=f"{changed[0].model_name}: scenarios 'first' and 'second' "
                                               "define this FMU differently"):
         scenarios.ensure_all([first, second], tmp_path, force=True)
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGHUP], ids=lambda s: s.name)
+def test_a_stop_signal_during_a_build_is_taken_once_the_fmu_is_complete(monkeypatch, tmp_path, signum):
+    """The signal comes while the archive is written (a cut there leaves zipfile unable to close); it is raised
+    when the FMU is complete, and nothing else is left: no partial archive, no temporary build folder."""
+    from fmus import builder
+    from fmus.cli import stopping
+    from fmus.runtime.kinds.signals import source_definition
+
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(scratch))
+    write = zipfile.ZipFile.writestr
+    signalled = []
+
+    def writestr(archive, name, data, *args, **kwargs):
+        if not signalled:
+            signalled.append(name)
+            signal.raise_signal(signum)
+        return write(archive, name, data, *args, **kwargs)
+
+    monkeypatch.setattr(zipfile.ZipFile, "writestr", writestr)
+    previous = stopping.install_handlers(stopping.raise_terminated, ignored_too=())
+    try:
+        with pytest.raises(stopping.Terminated) as stopped:
+            builder.build_fmu(source_definition("held_source"), tmp_path / "out")
+    finally:
+        stopping.restore_handlers(previous)
+    assert stopping.interrupted_status(stopped.value) == 128 + signum and signalled
+    assert validate_fmu(tmp_path / "out" / "held_source.fmu") == []
+    assert [p.name for p in (tmp_path / "out").iterdir()] == ["held_source.fmu"] and not list(scratch.iterdir())

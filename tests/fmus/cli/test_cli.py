@@ -7,8 +7,10 @@ exit code 2 -- before anything is simulated.  Run in-process through ``fmus.cli.
 from __future__ import annotations
 
 import argparse
+import io
 import os
 import shutil
+import signal
 import tempfile
 import zipfile
 
@@ -215,6 +217,48 @@ def test_a_subcommand_registers_itself_with_one_call(capsys):
         cli.SUBCOMMANDS.pop("hello-test")
 
 
+# ----------------------------------------------------------------------------- a signal dropped on the way
+class _DroppedUnclosed(io.RawIOBase):
+    """A file left to its finalizer (as fmpy leaves the zip member it reads modelDescription.xml from): the
+    signal comes while the finalizer closes it, and io's finalizer clears any exception ``close()`` raises."""
+
+    def __init__(self, signum):
+        super().__init__()
+        self.signum = signum
+
+    def close(self):
+        signal.raise_signal(self.signum)        # the handler runs here: its Terminated is dropped
+        super().close()
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP], ids=lambda s: s.name)
+def test_a_signal_swallowed_outside_a_run_still_stops_the_command_before_its_run(signum, capsys):
+    done = []
+
+    def command(args):
+        _DroppedUnclosed(signum)                # created and dropped at once
+        done.append("went on")                  # nothing was raised here
+        with StopRequest():
+            done.append("ran")
+        return 0
+
+    cli.register("swallowed-test", "a signal swallowed (test)", lambda parser: None, command)
+    try:
+        assert cli.main(["swallowed-test"]) == 128 + signum and done == ["went on"]
+        assert f"obsfmu: interrupted ({signum.name})" in capsys.readouterr().err
+        assert cli.main(["list"]) == 0              # reported once: the next command starts afresh
+    finally:
+        cli.SUBCOMMANDS.pop("swallowed-test")
+
+
+def test_a_stop_asked_after_the_last_run_writes_no_report_and_exits_with_the_signal(tmp_path, monkeypatch):
+    from fmus import report
+    monkeypatch.setattr(commands, "run_into", lambda out, build_dir, names, stop, jobs: stop._handle(signal.SIGTERM,
+                                                                                                     None) or 0)
+    monkeypatch.setattr(report, "write_report", lambda *a: pytest.fail("report written after a stop"))
+    assert commands.run_and_report(tmp_path, tmp_path, ["ship"]) == 128 + signal.SIGTERM
+
+
 # ----------------------------------------------------------------------------- time units (issue 16, item 2)
 def test_times_are_in_the_scenarios_unit_unless_one_is_given(build_dir, tmp_path, capsys):
     """The chemostat runs in hours: 90min and 36s are 1.5 h and 0.01 h."""
@@ -319,7 +363,6 @@ if __name__ == "__main__":   # the workers are spawned: they import this file as
 def test_ctrl_c_stops_every_worker_after_its_step_without_a_traceback(build_dir, tmp_path):
     """SIGINT to the whole process group (a terminal's Ctrl-C) while two workers run: exit 130, each
     scenario interrupted with its rows kept in NAME.partial.csv, no traceback from any process."""
-    import signal
     import subprocess
     import sys
     import time
