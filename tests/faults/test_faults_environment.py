@@ -99,3 +99,19 @@ def test_run_on_a_read_only_cache_falls_back_to_a_private_temporary_one(build_di
     stand_in = Path(notes[0].split("this process caches in ")[1].split(" instead")[0])
     assert not stand_in.parent.exists(), "the private cache is removed when the process ends"
     assert "ship: " in done.stdout
+
+
+def test_a_slave_that_cannot_be_made_again_at_reset_is_logged_with_its_exception(ship_fmus, tmp_path):
+    """Sweeps met ``fmi2Reset: error: unknown error``: the bridge cleared the exception of the failed
+    re-creation before logging it.  Now fmi2Reset is fmi2Error naming the exception; the host goes on."""
+    copy = tmp_path / "plant.fmu"
+    shutil.copy(ship_fmus["ship_plant"], copy)
+    probe = Probe(copy, name="reset")
+    resources = Path(probe.slave.unzipDirectory) / "resources"
+    (resources / "ship_plant.json").unlink()            # its definition: what a fresh slave reads first
+    before = len(probe.log)
+    assert probe.call(probe.slave.fmi2Reset, probe.slave.component) == 3       # fmi2Error
+    message = probe.messages(before)
+    assert "fmi2Reset: FileNotFoundError:" in message and "ship_plant.json" in message, message
+    assert "unknown error" not in message
+    probe.free()
