@@ -270,13 +270,18 @@ class StreamingRecorder(Recorder):
             self._flush()
 
     def _flush(self) -> None:
+        if self._scratch is None:     # ended (for want of room): the CSV's rows are still finished by close
+            return
         try:
             self._block[:self._filled].tofile(self._scratch)
-        except OSError as exc:
-            if not _no_room(exc):
+        except OSError as exc:        # numpy reports a short write ("8192 requested and 2176 written") without errno
+            if exc.errno is not None and not _no_room(exc):
                 raise
-            raise OutputError(f"temporary directory {tempfile.gettempdir()}: {exc.strerror or exc} (a run keeps "
-                              "its rows there; set TMPDIR to a directory with room)") from None
+            self._scratch.close()
+            self._scratch = None
+            reason = exc.strerror or "a short write: no room for the file"
+            raise OutputError(f"temporary directory {tempfile.gettempdir()}: {reason} (a run keeps its rows there; "
+                              "set TMPDIR to a directory with room)") from None
         self._rows += self._filled
         self._filled = 0
         if self._csv:
@@ -309,8 +314,7 @@ class StreamingRecorder(Recorder):
         if stream.row < 0:
             stream.discard()
             return None
-        if self._scratch is not None:
-            self._flush()
+        self._flush()
         return stream.close(complete)
 
     def discard(self) -> None:

@@ -259,7 +259,8 @@ def test_a_csv_that_fills_the_disk_keeps_its_complete_rows_and_says_where(build_
     ensure_fmus(get("ship"), build_dir)
     csv = tmp_path / "out.csv"
     done = subprocess.run(OBSFMU + ["run", "ship", "--build-dir", str(build_dir), "--step", "2e-4", "--stop-time", "100",
-                                    "--csv", str(csv)], capture_output=True, text=True, cwd=ROOT, timeout=300,
+                                    "--csv", str(csv), "--output-interval", "2e-4"],   # every row: the CSV fills first
+                          capture_output=True, text=True, cwd=ROOT, timeout=300,
                           preexec_fn=_file_size_limit(1_000_000))
     assert done.returncode == 2, done.stderr
     (line,) = done.stderr.strip().splitlines()
@@ -270,6 +271,25 @@ def test_a_csv_that_fills_the_disk_keeps_its_complete_rows_and_says_where(build_
     lines = partial.read_text().splitlines()
     assert len(lines) == rows + 1 and rows > 1000 and all(row.count(",") == 7 for row in lines)
     assert partial.stat().st_size <= 1_000_000 and not csv.exists() and not _hidden(tmp_path)
+
+
+def test_a_run_whose_temporary_rows_fill_the_disk_first_says_so_and_keeps_the_csv_rows(build_dir, tmp_path):
+    """At ship's output interval (1e-3 s) the CSV is 5 times smaller than the rows every run keeps in a
+    temporary file: that file hit the limit first and numpy's short write ("8192 requested and 2176 written",
+    no errno) came out as a bare error line. Now: the temporary folder named, the CSV's rows kept."""
+    ensure_fmus(get("ship"), build_dir)
+    csv = tmp_path / "out.csv"
+    done = subprocess.run(OBSFMU + ["run", "ship", "--build-dir", str(build_dir), "--step", "2e-4", "--stop-time", "100",
+                                    "--csv", str(csv)], capture_output=True, text=True, cwd=ROOT, timeout=300,
+                          preexec_fn=_file_size_limit(1_000_000))
+    assert done.returncode == 2, done.stderr
+    kept, error = done.stderr.strip().splitlines()
+    partial = tmp_path / "out.partial.csv"
+    assert kept == f"obsfmu: the rows computed before the error are in {partial}"
+    assert error.startswith("obsfmu: error: temporary directory ") and "set TMPDIR to a directory with room" in error
+    lines = partial.read_text().splitlines()
+    assert len(lines) > 100 and all(row.count(",") == 7 for row in lines) and not csv.exists()
+    assert not _hidden(tmp_path)
 
 
 def test_a_disk_full_from_the_start_writes_nothing_and_leaves_no_traceback(tmp_path, monkeypatch):
