@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from . import linear_types, signal_types  # noqa: F401  (they register their types on import)
+from . import linear_types, ltv_types, signal_types  # noqa: F401  (they register their types on import)
 from .schema import FIELD_TYPES, TYPES, ComponentType, Field
 
 __all__ = ["component_type", "reference"]

@@ -77,7 +77,7 @@ class Context:
     ``prefix`` names the component in messages (``components.plant.``); ``name`` is the system's;
     ``others`` maps every component defined before this one to its ``(kind, values)``; ``folder`` is the
     system file's folder (relative paths are read from there); ``notes`` collects what the build prints
-    (designed gains and poles).
+    (designed gains and poles); ``stop_time`` is the experiment's.
     """
 
     prefix: str
@@ -85,6 +85,7 @@ class Context:
     others: dict[str, tuple[str, dict]] = field(default_factory=dict)
     folder: Path = Path(".")
     notes: list[str] = field(default_factory=list)
+    stop_time: float | None = None     #: the file's [experiment] stop_time (checks on a grid of [0, stop_time])
 
 
 @dataclass(frozen=True)
