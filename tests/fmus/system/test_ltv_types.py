@@ -1,0 +1,143 @@
+"""The component types ``ltv-plant`` and ``ltv-adaptive-observer`` (paper 001) of a system file.
+
+Every refusal names the field and the assumption in one line, before anything is built; the good
+file builds the definitions the kinds take (expression functions, the estimator's parameters).
+"""
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fmus.system.load import parse_system
+from observers.checks import ParameterError
+
+ROOT = Path(__file__).resolve().parents[3]
+
+GOOD = '''name = "msd"
+connections = ["force.y -> plant.u", "force.y -> observer.u", "plant.y -> observer.y"]
+
+[experiment]
+stop_time = 20.0
+step = 1e-2
+
+[components.force]
+kind = "sine"
+
+[components.plant]
+kind = "ltv-plant"
+A = [[0, 1], [0, 0]]
+C = [1, 0]
+f = "y**3"
+k = [-0.6, -4]
+b = [0, 1]
+m = [0, -0.5]
+x0 = [0.5, 0.3]
+
+[components.observer]
+kind = "ltv-adaptive-observer"
+A = [[0, 1], [0, 0]]
+C = [1, 0]
+L = [0, 9]
+f = "y**3"
+unknowns = "k"
+b = [0, 1]
+m = [0, -0.5]
+'''
+
+
+def _bad(old: str, new: str, text: str = GOOD) -> str:
+    assert old in text, old
+    return text.replace(old, new, 1)
+
+
+BAD = {
+    "C(t)": (_bad('L = [0, 9]\n', 'L = [0, 9]\n', _bad('C = [1, 0]\nL', 'C = ["1", "sin(t)"]\nL')),
+             "components.observer.C: '1' is an expression; a time-varying C(t) (paper 001 allows it) is not supported"),
+    "zero C": (_bad('C = [1, 0]\nL', 'C = [0, 0]\nL'), "components.observer.C: the output vector is zero"),
+    "A shape": (_bad('A = [[0, 1], [0, 0]]\nC = [1, 0]\nL', 'A = [[0, 1, 2], [0, 0, 1]]\nC = [1, 0]\nL'),
+                "components.observer.A: expected 2 x 2 expressions (rows)"),
+    "L shape": (_bad('L = [0, 9]', 'L = [0, 9, 1]'), "components.observer.L: expected 2 expressions"),
+    "k size": (_bad('k = [-0.6, -4]', 'k = [-0.6, -4, 1]'), "components.plant.k: expected 2 entries"),
+    "A0 constant unstable": (_bad('L = [0, 9]', 'L = [-1, 9]'),
+                             "components.observer.L: A0(t) = A(t) - L(t) C^T has the eigenvalue 0.5+2.95804j "
+                             "(A0 is constant) (real part > 0)"),
+    "A0 Jordan block": (_bad('L = [0, 9]', 'L = [0, 0]'),
+                        "components.observer.L: A0 = A - L C^T is constant with the eigenvalue 0 on the imaginary "
+                        "axis 2 times but a Jordan block"),
+    "A0 varying unstable": (_bad('L = [0, 9]', 'L = ["-sin(t)", 9]'),
+                            "has the eigenvalue 0.0501667+2.99958j at t = 0.100503 (real part > 0); choose L(t) so "
+                            "that A0 is uniformly stable (paper 001, Assumptions 3-4)"),
+    "A0 unstable after 10 s": (_bad('L = [0, 9]', 'L = ["where(t > 12, -1, 1)", 9]'),
+                               "components.observer.L: A0(t) = A(t) - L(t) C^T has the eigenvalue 0.5+2.95804j at "
+                               "t = 12.0603"),
+    "not observable": (_bad('A = [[0, 1], [0, 0]]\nC = [1, 0]\nL = [0, 9]',
+                            'A = [[-1, 0], [0, -2]]\nC = [1, 0]\nL = [0, 0]'),
+                       "components.observer.C: (A0(t), C^T) is not observable at t = 0"),
+    "unknowns x0": (_bad('unknowns = "k"', 'unknowns = "k, x0"'),
+                    "components.observer.unknowns: expected distinct names among k, b, m separated by commas"),
+    "unknowns twice": (_bad('unknowns = "k"', 'unknowns = "k, k"'), "components.observer.unknowns: expected distinct"),
+    "known without value": (_bad('unknowns = "k"\nb = [0, 1]\n', 'unknowns = "k"\n'),
+                            "components.observer.b: b is known (not in unknowns); its value is required"),
+    "value of an unknown": (_bad('unknowns = "k"', 'unknowns = "k, b"'),
+                            "components.observer.b: b is in unknowns (estimated); give no value"),
+    "estimate of a known": (_bad('unknowns = "k"', 'unknowns = "k"\nb_hat0 = [0, 1]'),
+                            "components.observer.b_hat0: b is known (not in unknowns); it has no estimate"),
+    "estimator": (_bad('unknowns = "k"', 'unknowns = "k"\nestimator = "kalman"'), "components.observer.estimator"),
+    "noise bound with DREM": (_bad('unknowns = "k"', 'unknowns = "k"\nestimator = "drem"\nregression_error_bound = 0.1'),
+                              "components.observer.regression_error_bound: the drem estimator's converged bound holds "
+                              "for an exact regression only"),
+    "f of t": (_bad('f = "y**3"\nunknowns', 'f = "t * y"\nunknowns'), "components.observer.f[1]"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD))
+def test_each_assumption_and_dimension_is_refused_naming_the_field(case):
+    text, expected = BAD[case]
+    with pytest.raises(ParameterError) as caught:
+        parse_system(text, "f.toml")
+    assert expected in str(caught.value), str(caught.value)
+    assert "\n" not in str(caught.value)
+
+
+def test_the_grid_covers_the_stop_time_only():
+    """An A0 unstable after 12 s is refused for a 20 s run (above), accepted for a 10 s one, over which it is
+    constant (the block's own check covers [0, 10] only); a varying one is said to be checked at frozen times."""
+    text = BAD["A0 unstable after 10 s"][0]
+    system = parse_system(text.replace("stop_time = 20.0", "stop_time = 10.0"), "f.toml")
+    assert system.notes == ["components.observer: A0(t) = A(t) - L(t) C^T constant, uniformly stable"]
+    system = parse_system(_bad('L = [0, 9]', 'L = ["1 + 0.5 * sin(t)", 9]'), "f.toml")
+    assert system.notes == ["components.observer: A0(t) = A(t) - L(t) C^T stable at 200 frozen times of [0, 20] "
+                            "(necessary only)"]
+
+
+def test_a_good_file_builds_expression_functions_and_the_estimators_parameters():
+    system = parse_system(GOOD, "f.toml")
+    assert system.notes == ["components.observer: A0(t) = A(t) - L(t) C^T constant, uniformly stable"]
+    observer = system.components["observer"].definitions[0]
+    assert observer.options["A"]["expressions"] == ["0.0", "1.0", "0.0", "0.0"]
+    assert observer.options["unknowns"] == "k" and "estimator" not in observer.options
+    names = {p.name for p in observer.parameters}
+    assert {"b", "m", "gamma", "beta", "f0", "M", "x_hat0", "k_hat0"} <= names and "b_hat0" not in names
+    assert [p.size for p in observer.outputs if p.name == "theta_hat"] == [4]
+    drem = parse_system(_bad('unknowns = "k"', 'unknowns = "k"\nestimator = "drem"\nextension_rate = 2'), "f.toml")
+    definition = drem.components["observer"].definitions[0]
+    parameters = {p.name: p for p in definition.parameters}
+    assert definition.options["estimator"] == "drem" and "beta" not in parameters
+    assert np.ravel(parameters["extension_rate"].value).tolist() == [2.0]
+    assert "F_max" not in {p.name for p in definition.outputs}
+    plant = system.components["plant"].definitions[0]
+    assert plant.options["f"]["expressions"] == ["y**3"] and plant.options["f"]["arguments"] == [["y", 0]]
+
+
+def test_the_cli_refuses_a_bad_observer_in_one_line_with_exit_2(tmp_path):
+    (tmp_path / "bad.toml").write_text(BAD["A0 Jordan block"][0])
+    done = subprocess.run([sys.executable, "-m", "fmus.cli", "run", "--config", "bad.toml", "--build-dir", "fmus"],
+                          cwd=tmp_path, env={**os.environ, "PYTHONPATH": str(ROOT)}, capture_output=True, text=True,
+                          timeout=600)
+    assert done.returncode == 2 and "Traceback" not in done.stderr, done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1 and "Jordan block" in done.stderr, done.stderr
+    assert not list(tmp_path.glob("fmus/**/*.fmu"))
