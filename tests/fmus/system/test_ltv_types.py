@@ -62,18 +62,6 @@ BAD = {
                 "components.observer.A: expected 2 x 2 expressions (rows)"),
     "L shape": (_bad('L = [0, 9]', 'L = [0, 9, 1]'), "components.observer.L: expected 2 expressions"),
     "k size": (_bad('k = [-0.6, -4]', 'k = [-0.6, -4, 1]'), "components.plant.k: expected 2 entries"),
-    "A0 constant unstable": (_bad('L = [0, 9]', 'L = [-1, 9]'),
-                             "components.observer.L: A0(t) = A(t) - L(t) C^T has the eigenvalue 0.5+2.95804j "
-                             "(A0 is constant) (real part > 0)"),
-    "A0 Jordan block": (_bad('L = [0, 9]', 'L = [0, 0]'),
-                        "components.observer.L: A0 = A - L C^T is constant with the eigenvalue 0 on the imaginary "
-                        "axis 2 times but a Jordan block"),
-    "A0 varying unstable": (_bad('L = [0, 9]', 'L = ["-sin(t)", 9]'),
-                            "has the eigenvalue 0.0501667+2.99958j at t = 0.100503 (real part > 0); choose L(t) so "
-                            "that A0 is uniformly stable (paper 001, Assumptions 3-4)"),
-    "A0 unstable after 10 s": (_bad('L = [0, 9]', 'L = ["where(t > 12, -1, 1)", 9]'),
-                               "components.observer.L: A0(t) = A(t) - L(t) C^T has the eigenvalue 0.5+2.95804j at "
-                               "t = 12.0603"),
     "not observable": (_bad('A = [[0, 1], [0, 0]]\nC = [1, 0]\nL = [0, 9]',
                             'A = [[-1, 0], [0, -2]]\nC = [1, 0]\nL = [0, 0]'),
                        "components.observer.C: (A0(t), C^T) is not observable at t = 0"),
@@ -92,6 +80,20 @@ BAD = {
                               "for an exact regression only"),
     "f of t": (_bad('f = "y**3"\nunknowns', 'f = "t * y"\nunknowns'), "components.observer.f[1]"),
 }
+
+#: observer gains L for which A0 = A - L C^T breaks Assumptions 3-4, and the message
+UNSTABLE = {
+    "A0 constant unstable": ("[-1, 9]", "components.observer.L: A0(t) = A(t) - L(t) C^T has the eigenvalue "
+                                        "0.5+2.95804j (A0 is constant) (real part > 0)"),
+    "A0 Jordan block": ("[0, 0]", "components.observer.L: A0 = A - L C^T is constant with the eigenvalue 0 on the "
+                                  "imaginary axis 2 times but a Jordan block"),
+    "A0 varying unstable": ('["-sin(t)", 9]', "has the eigenvalue 0.0501667+2.99958j at t = 0.100503 (real part > "
+                                              "0); choose L(t) so that A0 is uniformly stable (paper 001, "
+                                              "Assumptions 3-4)"),
+    "A0 unstable after 10 s": ('["where(t > 12, -1, 1)", 9]', "components.observer.L: A0(t) = A(t) - L(t) C^T has "
+                                                              "the eigenvalue 0.5+2.95804j at t = 12.0603"),
+}
+BAD.update({case: (_bad("L = [0, 9]", f"L = {L}"), message) for case, (L, message) in UNSTABLE.items()})
 
 
 @pytest.mark.parametrize("case", sorted(BAD))
