@@ -1,7 +1,7 @@
 """Component types ``ltv-plant`` and ``ltv-adaptive-observer`` of a system file (paper 001).
 
-The plant class of paper 001, ``x' = A(t) x + k C^T x + b u + m f(y)``, ``y = C^T x``: ``A(t)`` and
-``L(t)`` are expressions of ``t``, ``f`` an expression of ``y``, ``C`` a constant vector (the observer
+The plant class of paper 001, ``x' = A(t) x + k C^T x + b u + m f(y, t)``, ``y = C^T x``: ``A(t)`` and
+``L(t)`` are expressions of ``t``, ``f`` an expression of ``y`` and ``t`` (one nonlinearity), ``C`` a constant vector (the observer
 does not support the paper's ``C(t)``: a text in ``C`` is refused saying so).  Every assumption that
 can be checked numerically is checked before anything is built (:mod:`observers.ltv.assumptions`):
 the dimensions; ``(A0(t), C^T)`` observable and ``A0(t) = A(t) - L(t) C^T`` stable at 200 points of
@@ -19,7 +19,7 @@ from observers.ltv.estimators import ESTIMATORS
 from observers.ltv.observer import PARTS
 
 from ..runtime.callables import resolve
-from ..runtime.functions import expression_function
+from ..runtime.functions import compiled, expression_function
 from ..runtime.kinds.ltv import ltv_observer_definition, ltv_plant_definition
 from .schema import Context, Field, register
 
@@ -33,7 +33,8 @@ _MODEL = (
           example='[["2 - sin(t)", 1], ["-8 + cos(t)", 0]]'),
     Field("C", "expression-vector", "output vector, y = C^T x (n numbers; the paper's C(t) is not supported)",
           example="[1, 0]"),
-    Field("f", "expression", "the known nonlinearity f(y) of m f(y) (an expression of y)", "0", example='"sin(y)"'),
+    Field("f", "expression", "the known nonlinearity f(y, t) of m f(y, t) (an expression of y and t)", "0",
+          example='"sin(y)"'),
     Field("constants", "table", "named constants the expressions may use", None, example="{ w = 2.0 }"),
 )
 _STEPPING = (
@@ -66,11 +67,17 @@ def _output_vector(values: dict, prefix: str) -> list[float]:
 
 
 def _functions(values: dict, n: int, prefix: str, names=("A", "f")) -> dict:
-    """The expression functions of ``names`` (A(t): n x n, L(t): n, f(y): scalar), each checked as it compiles."""
+    """The expression functions of ``names`` (A(t): n x n, L(t): n, f(y, t): scalar), each checked as it compiles.
+
+    ``f`` is a function of ``(t, y)`` only if its text reads ``t`` (else of ``y``: the kinds then call it
+    ``f(y)``, and ``f_correction`` applies)."""
     constants = values["constants"] or {}
-    shapes = {"A": ((("t", 0),), (n, n)), "L": ((("t", 0),), (n,)), "f": ((("y", 0),), ())}
-    return {name: expression_function(values[name], shapes[name][0], shapes[name][1], constants=constants,
-                                      field=prefix + name) for name in names}
+    shapes = {"A": ((("t", 0),), (n, n)), "L": ((("t", 0),), (n,)), "f": ((("t", 0), ("y", 0)), ())}
+    found = {name: expression_function(values[name], shapes[name][0], shapes[name][1], constants=constants,
+                                       field=prefix + name) for name in names}
+    if "t" not in compiled(found["f"]).vector.uses:
+        found["f"] = expression_function(values["f"], (("y", 0),), (), constants=constants, field=prefix + "f")
+    return found
 
 
 def _define_plant(model_name: str, values: dict, context: Context) -> list:

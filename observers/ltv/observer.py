@@ -92,7 +92,7 @@ class LTVAdaptiveObserver(Block):
         (Assumptions 3-4; a marginally stable ``A0`` such as the example's ``[[0, 1], [-9, 0]]``
         is accepted).
     f : callable
-        ``f(y) -> float``, the known nonlinearity of ``w = m f(y)``.
+        ``f(y) -> float``, the known nonlinearity of ``w = m f(y)`` (``f_time``: ``f(t, y)``).
     gamma, beta, f0, M : float
         Estimator gains: adaptation gain (``alpha`` in the paper's example), forgetting
         factor, ``F(0) = I / f0``, bound on ``F``.
@@ -135,6 +135,8 @@ class LTVAdaptiveObserver(Block):
         ``gamma``); :mod:`observers.ltv.estimators`.
     extension_rate : float
         ``a`` of DREM's extension ``Phi_e' = -a Phi_e + Psi^T Psi`` (1/s; ``drem`` only).
+    f_time : bool
+        ``f`` depends on the time too, ``w = m f(y, t)``: it is called ``f(t, y)`` (no ``f_correction``).
 
     Notes
     -----
@@ -148,21 +150,22 @@ class LTVAdaptiveObserver(Block):
 
     not_state = ("A", "L", "f", "C", "n", "max_substep", "max_dy", "substep_budget", "_forcing", "f_correction",
                  "converged_tolerance", "regression_error_bound", "initial_error", "unknowns", "_columns",
-                 "_known_columns", "_known", "least_squares")
+                 "_known_columns", "_known", "least_squares", "f_time")
     state_optional = {"_memo_key": None, "_memo": None}
 
     def __init__(self, A, C, L, f, gamma=1000.0, beta=1.0, f0=0.1, M=1e12, x_hat0=None, k_hat0=None,
                  b_hat0=None, m_hat0=None, max_substep=1e-3, max_dy=0.2, input_degree=2,
                  substep_budget=DEFAULT_SUBSTEP_BUDGET, f_correction=False, converged_tolerance=1e-3,
                  theta_bound=100.0, regression_error_bound=0.0, unknowns=PARTS, k=None, b=None, m=None,
-                 estimator="least-squares", extension_rate=1.0):
+                 estimator="least-squares", extension_rate=1.0, f_time=False):
         self.C = as_vector("C", C)
         if not np.any(self.C):
             raise ParameterError("C: the output vector is zero; y = C^T x would measure nothing")
         n = self.n = self.C.size
         self.A = time_function("A", A, (n, n))
         self.L = time_function("L", L, (n,))
-        self.f = output_function("f", f)
+        self.f_time = bool(f_time)
+        self.f = output_function("f", f, self.f_time)
         require_assumptions(self.A, self.L, self.C)
         self.max_substep = require_positive("max_substep", max_substep)
         self.max_dy = require_positive("max_dy", max_dy)
@@ -197,6 +200,9 @@ class LTVAdaptiveObserver(Block):
         self._forcing = forcing.reshape(3, -1)
         self.inputs = PolynomialInputs(input_degree)
         self.f_correction = bool(f_correction)
+        if self.f_correction and self.f_time:
+            raise ParameterError("f_correction: resolves the fast part of y that m f(y) drives for an f of y only; "
+                                 "this f depends on t (give f_correction = 0)")
         self.integral = IntegralSamples(self.inputs.degree)   # int f(y) at the last samples (f_correction)
         self._memo_key, self._memo = None, None
         self.input_sizes = {"u": 1, "y": 1}
@@ -209,7 +215,7 @@ class LTVAdaptiveObserver(Block):
         L = np.asarray(self.L(t), dtype=float)
         A0 = np.asarray(self.A(t), dtype=float) - np.outer(L, self.C)
         # eta' = A0 eta + I y, zeta' = A0 zeta + I u, rho' = A0 rho + I f(y), (-Phi)' = A0 (-Phi)
-        G = (np.array((y, u, float(self.f(y)))) @ self._forcing).reshape(self.S.shape)
+        G = (np.array((y, u, float(self.f(t, y) if self.f_time else self.f(y)))) @ self._forcing).reshape(self.S.shape)
         G[:, 0] = L * y                      # xi' = A0 xi + L y
         return A0, G
 

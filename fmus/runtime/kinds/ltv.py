@@ -22,6 +22,7 @@ from plants.ltv import OutputNonlinearLTVPlant
 from plants.signals import SampledNoise
 
 from ..callables import reference, resolve
+from ..functions import is_expression_function
 from ..definition import FmuDefinition, Parameter, Port
 from . import register
 from .diagnostics import LS_CONTRACT, Contract, contract_parameters, contract_ports, contract_values
@@ -60,7 +61,7 @@ def _plant(p, options):
     noise = SampledNoise(float(p["noise_std"]), float(p["noise_dt"]), float(p["noise_seed"]))   # checks all three
     return OutputNonlinearLTVPlant(_function(options, "A"), p["C"], _function(options, "f"), p["k"], p["b"],
                                    p["m"], p["x0"], noise, float(p["max_substep"]), float(p["max_dy"]),
-                                   _degree(p), _budget(p))
+                                   _degree(p), _budget(p), f_time=_timed(options, "f"))
 
 
 @register(OBSERVER_KIND)
@@ -76,8 +77,14 @@ def _observer(p, options):
                                b_hat0=p.get("b_hat0"), m_hat0=p.get("m_hat0"), max_substep=float(p["max_substep"]),
                                max_dy=float(p["max_dy"]), input_degree=_degree(p), substep_budget=_budget(p),
                                f_correction=_flag(p, "f_correction"), unknowns=unknowns, estimator=estimator,
-                               extension_rate=float(p.get("extension_rate", 1.0)), **least_squares, **contract,
-                               **known)
+                               extension_rate=float(p.get("extension_rate", 1.0)), f_time=_timed(options, "f"),
+                               **least_squares, **contract, **known)
+
+
+def _timed(options: dict, key: str) -> bool:
+    """The function option ``key`` is an expression function of ``(t, y)``: called ``f(t, y)``."""
+    option = options.get(key)
+    return is_expression_function(option) and list(option["arguments"][0]) == ["t", 0]
 
 
 def _estimator(options: dict) -> str:

@@ -78,7 +78,10 @@ BAD = {
     "noise bound with DREM": (_bad('unknowns = "k"', 'unknowns = "k"\nestimator = "drem"\nregression_error_bound = 0.1'),
                               "components.observer.regression_error_bound: the drem estimator's converged bound holds "
                               "for an exact regression only"),
-    "f of t": (_bad('f = "y**3"\nunknowns', 'f = "t * y"\nunknowns'), "components.observer.f[1]"),
+    "f of t with f_correction": (_bad('f = "y**3"\nunknowns', 'f = "t * y"\nf_correction = true\nunknowns'),
+                                 "components.observer.f_correction: resolves the fast part of y that m f(y) drives "
+                                 "for an f of y only; this f depends on t"),
+    "f of x": (_bad('f = "y**3"\nunknowns', 'f = "x[1]"\nunknowns'), "components.observer.f[1]"),
 }
 
 #: observer gains L for which A0 = A - L C^T breaks Assumptions 3-4, and the message
@@ -143,3 +146,33 @@ def test_the_cli_refuses_a_bad_observer_in_one_line_with_exit_2(tmp_path):
     assert done.returncode == 2 and "Traceback" not in done.stderr, done.stderr
     assert len(done.stderr.strip().splitlines()) == 1 and "Jordan block" in done.stderr, done.stderr
     assert not list(tmp_path.glob("fmus/**/*.fmu"))
+
+
+def test_a_varying_A_and_an_f_of_y_and_t_from_expressions_converge():
+    """Block level (the kinds' factories, no FMU): ``A(t)``, ``L(t)`` varying with a constant ``A0``, ``f(y, t)``,
+    least squares; ``x(0)`` and ``k`` to 1e-3 within 15 s, the flag never early."""
+    from fmus.runtime.kinds import create_block
+    from observers.block import Segment
+    text = GOOD.replace("A = [[0, 1], [0, 0]]", 'A = [[0, 1], ["-0.5 * sin(t)", 0]]').replace(
+        'f = "y**3"', 'f = "y**3 * (1 + 0.5 * cos(t))"').replace("L = [0, 9]", 'L = [0, "9 - 0.5 * sin(t)"]')
+    text = text.replace('kind = "sine"', 'kind = "multisine"\namplitudes = [2, 1]\nfrequencies_hz = [0.1, 0.37]')
+    system = parse_system(text, "f.toml")
+    assert system.notes == ["components.observer: A0(t) = A(t) - L(t) C^T constant, uniformly stable"]
+    plant, observer = (create_block(d.kind, {p.name: p.array(p.value) for p in d.parameters}, d.options)
+                       for d in (system.components[name].definitions[0] for name in ("plant", "observer")))
+    assert plant.f_time and observer.f_time
+    theta, h = np.array([-0.5, -0.3, -0.6, -4.0]), 1e-2
+    force = system.components["force"].definitions[0]
+    source = create_block(force.kind, {p.name: p.array(p.value) for p in force.parameters}, force.options)
+    errors, flags = [], []
+    for i in range(1500):
+        t = i * h
+        y0 = plant.outputs(t, {})["y"]
+        u = Segment.between(source.outputs(t, {})["y"], source.outputs(t + h, {})["y"], h)
+        plant.advance(t, h, {"u": u})
+        observer.advance(t, h, {"u": u, "y": Segment.between(y0, plant.outputs(t + h, {})["y"], h)})
+        out = observer.outputs(t + h, {})
+        errors.append(np.linalg.norm(out["theta_hat"] - theta))
+        flags.append(out["converged"][0])
+    errors, flags = np.array(errors), np.array(flags)
+    assert errors[-1] < 1e-3 and flags[-1] == 1 and np.all(errors[flags == 1] <= 1e-3)
