@@ -74,7 +74,8 @@ def table(found) -> list[str]:
         errors, times = np.array(rows).T
         reached = times[np.isfinite(times)]
         time = (f"{np.median(times):.1f} ({times.max():.1f})" if reached.size == times.size else
-                f"{reached.size} of {times.size} reach it" + (f", median {np.median(reached):.1f}" if reached.size else ""))
+                f"{reached.size} of {times.size} reach it"
+                + (f", median {np.median(reached):.1f}" if reached.size else ""))
         lines.append(f"| {std:g} | {beta:g} | {np.median(errors):.2e} ({errors.max():.2e}) | {time} |")
     return lines
 

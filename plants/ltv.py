@@ -89,7 +89,8 @@ class OutputNonlinearLTVPlant(Block):
     (4 n, the true ``Theta = [-x(0); k; b; m]``).
     """
 
-    not_state = ("A", "f", "f_time", "C", "k", "b", "m", "theta", "_kbm", "noise", "max_substep", "max_dy", "substep_budget")
+    not_state = ("A", "f", "f_time", "C", "k", "b", "m", "theta", "_kbm", "noise", "max_substep", "max_dy",
+                 "substep_budget")
 
     def __init__(self, A: Callable, C, f: Callable, k, b, m, x0, noise: SampledNoise | None = None,
                  max_substep: float = 1e-3, max_dy: float = 0.2, input_degree: int = 2,

@@ -1,8 +1,8 @@
 """Component types ``ltv-plant`` and ``ltv-adaptive-observer`` of a system file (paper 001).
 
 The plant class of paper 001, ``x' = A(t) x + k C^T x + b u + m f(y, t)``, ``y = C^T x``: ``A(t)`` and
-``L(t)`` are expressions of ``t``, ``f`` an expression of ``y`` and ``t`` (one nonlinearity), ``C`` a constant vector (the observer
-does not support the paper's ``C(t)``: a text in ``C`` is refused saying so).  Every assumption that
+``L(t)`` are expressions of ``t``, ``f`` an expression of ``y`` and ``t`` (one nonlinearity), ``C`` a
+constant vector (the observer does not support the paper's ``C(t)``: a text in ``C`` is refused saying so).  Every assumption that
 can be checked numerically is checked before anything is built (:mod:`observers.ltv.assumptions`):
 the dimensions; ``(A0(t), C^T)`` observable and ``A0(t) = A(t) - L(t) C^T`` stable at 200 points of
 ``[0, stop_time]`` -- exactly if ``A0`` is constant, else frozen-time eigenvalues, which are only a

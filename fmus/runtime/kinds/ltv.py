@@ -3,8 +3,8 @@
 The user's model functions ``A(t)``, ``L(t)``, ``f(y)`` are ``"module:function"`` references or
 expression functions (:mod:`fmus.runtime.functions`) in the definition's ``options`` (resolved here
 with :func:`fmus.runtime.callables.resolve`, never evaluated); everything numeric is an FMU
-parameter.  The estimator is the option ``estimator`` (default least squares, the paper's).  The dimension ``n`` is fixed when the FMU
-is built; the paper's functions are in :mod:`plants.ltv`.
+parameter.  The estimator is the option ``estimator`` (default least squares, the paper's).  The
+dimension ``n`` is fixed when the FMU is built; the paper's functions are in :mod:`plants.ltv`.
 """
 
 from __future__ import annotations
@@ -22,8 +22,8 @@ from plants.ltv import OutputNonlinearLTVPlant
 from plants.signals import SampledNoise
 
 from ..callables import reference, resolve
-from ..functions import is_expression_function
 from ..definition import FmuDefinition, Parameter, Port
+from ..functions import is_expression_function
 from . import register
 from .diagnostics import LS_CONTRACT, Contract, contract_parameters, contract_ports, contract_values
 
@@ -223,7 +223,8 @@ def ltv_observer_definition(model_name: str, A, C, L, f, *, gamma=1000.0, beta=1
         Parameter.of("C", C, "output vector, y = C^T x"),
     ] + values + [
         _scalar("gamma", gamma, f"adaptation gain of the {estimator} estimator"),
-    ] + _estimator_parameters(estimator, beta, f0, M, extension_rate) + [Parameter.of(name, zeros if value is None else value, text) for name, value, text in estimates] \
+    ] + _estimator_parameters(estimator, beta, f0, M, extension_rate) \
+      + [Parameter.of(name, zeros if value is None else value, text) for name, value, text in estimates] \
       + _stepping(max_substep, max_dy, input_degree) \
       + [_scalar("f_correction", f_correction, "1: inside a step y follows the polynomial of y - C^T m_hat "
                  "int f(y) plus that fast part (for outputs f(y) makes oscillate between samples); "

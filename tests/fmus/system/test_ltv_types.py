@@ -75,7 +75,8 @@ BAD = {
     "estimate of a known": (_bad('unknowns = "k"', 'unknowns = "k"\nb_hat0 = [0, 1]'),
                             "components.observer.b_hat0: b is known (not in unknowns); it has no estimate"),
     "estimator": (_bad('unknowns = "k"', 'unknowns = "k"\nestimator = "kalman"'), "components.observer.estimator"),
-    "noise bound with DREM": (_bad('unknowns = "k"', 'unknowns = "k"\nestimator = "drem"\nregression_error_bound = 0.1'),
+    "noise bound with DREM": (_bad('unknowns = "k"', 'unknowns = "k"\nestimator = "drem"\n'
+                                                     'regression_error_bound = 0.1'),
                               "components.observer.regression_error_bound: the drem estimator's converged bound holds "
                               "for an exact regression only"),
     "f of t with f_correction": (_bad('f = "y**3"\nunknowns', 'f = "t * y"\nf_correction = true\nunknowns'),
