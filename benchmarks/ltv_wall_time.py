@@ -5,7 +5,9 @@ For each case (``bounded``: 20 s, ``paper``: 15 s) and communication step, the t
 (Gauss-Seidel, linear coupling) and timed; the independent monolithic solve_ivp solution of
 plant + filters + estimator (``fmus/scenarios/ltv_common/reference.py``, Radau, rtol = atol = 1e-10,
 information form; for ``bounded`` also the paper's stiff ``F`` form) is timed on the same
-horizon.  Printed: wall times, their ratio (co-simulation / Radau), and the largest deviation
+horizon.  The scenarios' A(t), L(t), f(y) are expression functions of their system files (before:
+the Python functions of plants.ltv; run this file in a checkout of each to compare).  Printed: wall
+times, their ratio (co-simulation / Radau), and the largest deviation
 of ``theta_hat`` from the reference on a 0.01 s grid -- so speed is never read without accuracy.
 
 The estimator is stiff (``gamma Psi F Psi^T ~ 1e4 1/s`` at t = 0) but the observer integrates it
@@ -46,7 +48,8 @@ def main() -> None:
     args = parser.parse_args()
 
     with tempfile.TemporaryDirectory(prefix="obsfmu_bench_") as build:
-        ensure_fmus(get("ltv-ls"), Path(build))
+        for scenario, _, _ in CASES.values():             # each system file has its own FMUs
+            ensure_fmus(get(scenario), Path(build))
         for case in args.cases:
             scenario, unknowns, horizon = CASES[case]
             grid = np.linspace(0.0, horizon, int(round(horizon * 100)) + 1)

@@ -67,7 +67,7 @@ class OutputNonlinearLTVPlant(Block):
     C : array_like, shape (n,)
         Output vector.
     f : callable
-        ``f(y) -> float``.
+        ``f(y) -> float`` (``f_time``: ``f(t, y) -> float``).
     k, b, m, x0 : array_like, shape (n,)
         Output injection ``k C^T x``, input vector, nonlinearity gain, initial state.
     noise : SampledNoise, optional
@@ -80,6 +80,8 @@ class OutputNonlinearLTVPlant(Block):
         Degree of the polynomial ``u`` follows inside a step when the master interpolates.
     substep_budget : int
         Most sub-steps one communication step may take (a longer step is refused).
+    f_time : bool
+        ``f`` depends on the time too: it is called ``f(t, y)``.
 
     Notes
     -----
@@ -87,17 +89,19 @@ class OutputNonlinearLTVPlant(Block):
     (4 n, the true ``Theta = [-x(0); k; b; m]``).
     """
 
-    not_state = ("A", "f", "C", "k", "b", "m", "theta", "_kbm", "noise", "max_substep", "max_dy", "substep_budget")
+    not_state = ("A", "f", "f_time", "C", "k", "b", "m", "theta", "_kbm", "noise", "max_substep", "max_dy",
+                 "substep_budget")
 
     def __init__(self, A: Callable, C, f: Callable, k, b, m, x0, noise: SampledNoise | None = None,
                  max_substep: float = 1e-3, max_dy: float = 0.2, input_degree: int = 2,
-                 substep_budget: int = DEFAULT_SUBSTEP_BUDGET):
+                 substep_budget: int = DEFAULT_SUBSTEP_BUDGET, f_time: bool = False):
         self.C = as_vector("C", C)
         if not np.any(self.C):
             raise ParameterError("C: the output vector is zero; y = C^T x would measure nothing")
         n = self.C.size
         self.A = time_function("A", A, (n, n))
-        self.f = output_function("f", f)
+        self.f_time = bool(f_time)
+        self.f = output_function("f", f, self.f_time)
         self.k, self.b, self.m, x0 = (as_vector(name, value, n)
                                       for name, value in (("k", k), ("b", b), ("m", m), ("x0", x0)))
         self.theta = np.concatenate([-x0, self.k, self.b, self.m])
@@ -115,7 +119,7 @@ class OutputNonlinearLTVPlant(Block):
         """Right-hand side of (1): ``A(t) x + k y + b u + m f(y)``, ``y = C^T x`` (``A``: ``A(t)`` if known)."""
         y = float(self.C @ x)
         A = np.asarray(self.A(t), dtype=float) if A is None else A
-        return A @ x + self._kbm @ np.array((y, u, float(self.f(y))))
+        return A @ x + self._kbm @ np.array((y, u, float(self.f(t, y) if self.f_time else self.f(y))))
 
     def outputs(self, t: float, inputs: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
         y = np.array([self.C @ self.x])

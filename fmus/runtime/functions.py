@@ -122,10 +122,18 @@ class ExpressionFunction:
 
     def __call__(self, *arguments):
         t = float(arguments[0]) if self.timed else 0.0
-        vectors = [np.atleast_1d(np.asarray(a, dtype=float)).tolist() for a in arguments[self.timed:]]
+        vectors = [_floats(a) for a in arguments[self.timed:]]
         x, u = (vectors + [[], []])[:2]
-        values = self.vector.of_lists(t, x, u, self.constants)
-        return float(values[0]) if not self.shape else values.reshape(self.shape)
+        if not self.shape:            # one expression: its value, no array (called per RK4 stage: f(y) of paper 001)
+            return float(self.vector.parts[0](t, x, u, self.constants))
+        return self.vector.of_lists(t, x, u, self.constants).reshape(self.shape)
+
+
+def _floats(argument) -> list:
+    """An argument as a list of Python floats (a number without numpy: the common scalar case)."""
+    if isinstance(argument, (float, int)) and not isinstance(argument, bool):
+        return [float(argument)]
+    return np.atleast_1d(np.asarray(argument, dtype=float)).tolist()
 
 
 def compiled(option, what: str = "function") -> ExpressionFunction:

@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from . import (gpebo_types, linear_types, signal_types, state_affine_types, uio_types,  # noqa: F401  (register on import)
-               waveform_types)
+from . import (gpebo_types, linear_types, ltv_types, signal_types, state_affine_types,  # noqa: F401  (register on import)
+               uio_types, waveform_types)
 from .schema import FIELD_TYPES, TYPES, ComponentType, Field
 
 __all__ = ["component_type", "reference"]

@@ -252,9 +252,10 @@ def _parse(text: str, path: str, folder: Path, locator: Locator) -> SystemSpec:
     top, _ = _fields("", {k: v for k, v in data.items() if k not in _SECTIONS and k != "connections"},
                      TOP_FIELDS[:3])
     _identifier("name", top["name"])
-    context = Context(prefix="", name=top["name"], time_unit=top["time_unit"], folder=folder)
-    components = _components(data, context, locator, path)
     experiment = _experiment(data)
+    context = Context(prefix="", name=top["name"], time_unit=top["time_unit"], folder=folder,
+                      stop_time=experiment["stop_time"])
+    components = _components(data, context, locator, path)
     connections = check_connections(data.get("connections", []), components)
     values = check_values(_table("values", data.get("values", {})), components, connections)
     require_connected(components, connections, values)

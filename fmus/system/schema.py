@@ -81,7 +81,8 @@ class Context:
     ``others`` maps every component defined before this one to its ``(kind, values)``; ``folder`` is the
     system file's folder (relative paths are read from there); ``notes`` collects what the build prints
     (designed gains and poles); ``rates`` the fastest rates of the components' dynamics and signals
-    (``(|lambda| in 1/time unit, what)``), against which every run's step is checked.
+    (``(|lambda| in 1/time unit, what)``), against which every run's step is checked; ``stop_time`` is the
+    experiment's.
     """
 
     prefix: str
@@ -90,6 +91,7 @@ class Context:
     others: dict[str, tuple[str, dict]] = field(default_factory=dict)
     folder: Path = Path(".")
     notes: list[str] = field(default_factory=list)
+    stop_time: float | None = None     #: the file's [experiment] stop_time (checks on a grid of [0, stop_time])
     rates: list[tuple[float, str]] = field(default_factory=list)
 
     def rate(self, eigenvalues, what: str) -> None:

@@ -60,9 +60,10 @@ import numpy as np
 
 from ..block import Block, Segment
 from ..checks import ParameterError, as_vector, finite_signal, require_positive
-from ..estimation import LeastSquaresForgetting
 from ..estimation.exponential import phi1
 from ..integrators import DEFAULT_SUBSTEP_BUDGET, require_budget, substep_count
+from .assumptions import require_assumptions
+from .estimators import ESTIMATORS, make_estimator
 from .stepping import (SUBSTEP_POINTS, IntegralSamples, PolynomialInputs, output_function, resolved_output,
                            rk4_linear, substep_points, time_function)
 
@@ -91,7 +92,7 @@ class LTVAdaptiveObserver(Block):
         (Assumptions 3-4; a marginally stable ``A0`` such as the example's ``[[0, 1], [-9, 0]]``
         is accepted).
     f : callable
-        ``f(y) -> float``, the known nonlinearity of ``w = m f(y)``.
+        ``f(y) -> float``, the known nonlinearity of ``w = m f(y)`` (``f_time``: ``f(t, y)``).
     gamma, beta, f0, M : float
         Estimator gains: adaptation gain (``alpha`` in the paper's example), forgetting
         factor, ``F(0) = I / f0``, bound on ``F``.
@@ -128,35 +129,44 @@ class LTVAdaptiveObserver(Block):
         ``[-x(0); unknowns]`` (no dummy unknowns).
     k, b, m : array_like, shape (n,), optional
         Values of the known parameters (exactly those not in ``unknowns``).
+    estimator : str
+        ``"least-squares"`` (the paper's: ``gamma``, ``beta``, ``f0``, ``M``), ``"drem"`` (DREM on a
+        Kreisselmeier extension of rate ``extension_rate``, gain ``gamma``) or ``"gradient"`` (gain
+        ``gamma``); :mod:`observers.ltv.estimators`.
+    extension_rate : float
+        ``a`` of DREM's extension ``Phi_e' = -a Phi_e + Psi^T Psi`` (1/s; ``drem`` only).
+    f_time : bool
+        ``f`` depends on the time too, ``w = m f(y, t)``: it is called ``f(t, y)`` (no ``f_correction``).
 
     Notes
     -----
     Ports: inputs ``u``, ``y`` (scalars); outputs ``x_hat`` (n), ``theta_hat`` (4 n, the whole
     ``Theta_hat``), its parts ``k_hat``, ``b_hat``, ``m_hat``, ``x0_hat = -theta_hat[:n]``, and
-    ``F_max``, the largest eigenvalue of the gain ``F`` (bounded by ``M``; watch it under noise);
-    then the diagnostics contract (docs/estimation.md, "Diagnostics"): ``excitation =
-    lambda_min(P) / gamma`` (``P = F^-1``) and ``converged`` (1 once
-    :meth:`~observers.estimation.LeastSquaresForgetting.error_bound` is at most
-    ``converged_tolerance``, else 0).
+    (least squares only) ``F_max``, the largest eigenvalue of the gain ``F`` (bounded by ``M``; watch it
+    under noise); then the diagnostics contract (docs/estimation.md, "Diagnostics"): ``excitation``
+    and ``converged`` (1 once the estimator's guaranteed error bound is at most ``converged_tolerance``,
+    else 0), per estimator in :mod:`observers.ltv.estimators`.
     """
 
     not_state = ("A", "L", "f", "C", "n", "max_substep", "max_dy", "substep_budget", "_forcing", "f_correction",
                  "converged_tolerance", "regression_error_bound", "initial_error", "unknowns", "_columns",
-                 "_known_columns", "_known")
+                 "_known_columns", "_known", "least_squares", "f_time")
     state_optional = {"_memo_key": None, "_memo": None}
 
     def __init__(self, A, C, L, f, gamma=1000.0, beta=1.0, f0=0.1, M=1e12, x_hat0=None, k_hat0=None,
                  b_hat0=None, m_hat0=None, max_substep=1e-3, max_dy=0.2, input_degree=2,
                  substep_budget=DEFAULT_SUBSTEP_BUDGET, f_correction=False, converged_tolerance=1e-3,
-                 theta_bound=100.0, regression_error_bound=0.0, unknowns=PARTS, k=None, b=None, m=None):
+                 theta_bound=100.0, regression_error_bound=0.0, unknowns=PARTS, k=None, b=None, m=None,
+                 estimator="least-squares", extension_rate=1.0, f_time=False):
         self.C = as_vector("C", C)
         if not np.any(self.C):
             raise ParameterError("C: the output vector is zero; y = C^T x would measure nothing")
         n = self.n = self.C.size
         self.A = time_function("A", A, (n, n))
         self.L = time_function("L", L, (n,))
-        self.f = output_function("f", f)
-        _require_stable_A0(self.A, self.L, self.C)
+        self.f_time = bool(f_time)
+        self.f = output_function("f", f, self.f_time)
+        require_assumptions(self.A, self.L, self.C)
         self.max_substep = require_positive("max_substep", max_substep)
         self.max_dy = require_positive("max_dy", max_dy)
         self.substep_budget = require_budget(substep_budget)
@@ -173,9 +183,11 @@ class LTVAdaptiveObserver(Block):
         self._known_columns = np.array([j * n + i for p in known for j in [1 + PARTS.index(p)] for i in range(n)],
                                        dtype=np.intp)
         self._known = np.concatenate([known[p] for p in known]) if known else np.zeros(0)
-        self.estimator = LeastSquaresForgetting(theta0.size, gamma, beta, f0, M, theta0)
         self.converged_tolerance = require_positive("converged_tolerance", converged_tolerance)
         self.regression_error_bound = require_positive("regression_error_bound", regression_error_bound, allow_zero=True)
+        self.estimator = make_estimator(estimator, theta0, gamma, beta, f0, M, extension_rate,
+                                        self.regression_error_bound)
+        self.least_squares = estimator == ESTIMATORS[0]
         # |Theta_hat(0) - Theta|_2 <= | |Theta_hat(0)| + theta_bound |_2
         self.initial_error = float(np.linalg.norm(np.abs(theta0) + require_positive("theta_bound", theta_bound)))
         # S = [xi, W] = [xi, -Phi, eta, zeta, rho], n x (1 + 4 n)
@@ -188,11 +200,14 @@ class LTVAdaptiveObserver(Block):
         self._forcing = forcing.reshape(3, -1)
         self.inputs = PolynomialInputs(input_degree)
         self.f_correction = bool(f_correction)
+        if self.f_correction and self.f_time:
+            raise ParameterError("f_correction: resolves the fast part of y that m f(y) drives for an f of y only; "
+                                 "this f depends on t (give f_correction = 0)")
         self.integral = IntegralSamples(self.inputs.degree)   # int f(y) at the last samples (f_correction)
         self._memo_key, self._memo = None, None
         self.input_sizes = {"u": 1, "y": 1}
-        self.output_sizes = {"x_hat": n, "theta_hat": theta0.size, "k_hat": n, "b_hat": n, "m_hat": n,
-                             "x0_hat": n, "F_max": 1, "excitation": 1, "converged": 1}
+        self.output_sizes = {"x_hat": n, "theta_hat": theta0.size, "k_hat": n, "b_hat": n, "m_hat": n, "x0_hat": n,
+                             **({"F_max": 1} if self.least_squares else {}), "excitation": 1, "converged": 1}
 
     # ------------------------------------------------------------------ equations
     def _evaluate(self, t: float, y: float, u: float):
@@ -200,7 +215,7 @@ class LTVAdaptiveObserver(Block):
         L = np.asarray(self.L(t), dtype=float)
         A0 = np.asarray(self.A(t), dtype=float) - np.outer(L, self.C)
         # eta' = A0 eta + I y, zeta' = A0 zeta + I u, rho' = A0 rho + I f(y), (-Phi)' = A0 (-Phi)
-        G = (np.array((y, u, float(self.f(y)))) @ self._forcing).reshape(self.S.shape)
+        G = (np.array((y, u, float(self.f(t, y) if self.f_time else self.f(y)))) @ self._forcing).reshape(self.S.shape)
         G[:, 0] = L * y                      # xi' = A0 xi + L y
         return A0, G
 
@@ -227,10 +242,11 @@ class LTVAdaptiveObserver(Block):
         n, estimator = self.n, self.estimator
         theta = self.full_theta().copy()
         converged = estimator.error_bound(self.initial_error, self.regression_error_bound) <= self.converged_tolerance
-        return {"x_hat": self.state_estimate(), "theta_hat": estimator.theta_hat.copy(), "k_hat": theta[n:2 * n],
-                "b_hat": theta[2 * n:3 * n], "m_hat": theta[3 * n:], "x0_hat": -theta[:n],
-                "F_max": np.array([estimator.F_max]), "excitation": np.array([estimator.lambda_min / estimator.gamma]),
-                "converged": np.array([float(converged)])}
+        found = {"x_hat": self.state_estimate(), "theta_hat": estimator.theta_hat.copy(), "k_hat": theta[n:2 * n],
+                 "b_hat": theta[2 * n:3 * n], "m_hat": theta[3 * n:], "x0_hat": -theta[:n]}
+        if self.least_squares:
+            found["F_max"] = np.array([estimator.F_max])
+        return {**found, "excitation": np.array([estimator.excitation]), "converged": np.array([float(converged)])}
 
     def advance(self, t: float, h: float, inputs: Mapping[str, Segment]) -> None:
         polynomials, history = self.inputs.step(t, h, inputs)
@@ -254,7 +270,7 @@ class LTVAdaptiveObserver(Block):
         # regression (7) at the Gauss nodes of every sub-step, all at once: z = y - C^T xi, Psi = C^T W
         CS = self.C @ np.array(at_nodes)
         y_nodes = np.array([value for points in y_inside for value in points[2:]])
-        weights = _quadrature_weights(count, h, self.estimator.beta)
+        weights = _quadrature_weights(count, h, self.estimator.forgetting)
         estimator = copy.copy(self.estimator)          # committed only if the whole step succeeds
         z, Psi = y_nodes - CS[:, 0], CS[:, 1:]
         if self._columns is not None:                    # known parts of (10) to the left side of (7)
@@ -319,27 +335,3 @@ def _quadrature_weights(count: int, h: float, beta: float) -> np.ndarray:
     weights = np.sqrt(0.5 * dt * np.exp(-beta * (h - nodes)) / (h * phi1(beta * h)))
     weights.flags.writeable = False          # cached: shared by every step of this length
     return weights
-
-
-def _require_stable_A0(A, L, C, times=np.linspace(0.0, 10.0, 21), tolerance=1e-9) -> None:
-    """Refuse an ``L`` for which ``A0(t) = A(t) - L(t) C^T`` has an unstable frozen eigenvalue, and a
-    ``C`` with which a frozen ``(A0(t), C^T)`` is not observable.
-
-    Frozen-time eigenvalues do not prove uniform stability of an LTV system; this catches
-    wrong signs and dimensions early.  A0 growing at run time is caught in ``advance``.
-    """
-    for t in times:
-        A0 = np.asarray(A(t), dtype=float) - np.outer(np.asarray(L(t), dtype=float), C)
-        if not np.all(np.isfinite(A0)):
-            raise ParameterError(f"L: A0(t) = A(t) - L(t) C^T is not finite at t = {t:g}")
-        observability = np.array([C @ np.linalg.matrix_power(A0, i) for i in range(C.size)])
-        if np.linalg.matrix_rank(observability) < C.size:
-            raise ParameterError(f"C: (A0(t), C^T) is not observable at t = {t:g} (the rank of "
-                                 f"[C^T; C^T A0; ...] is {np.linalg.matrix_rank(observability)} < n = {C.size}); "
-                                 f"the regression (7) cannot identify x(0)")
-        eigenvalues = np.linalg.eigvals(A0)
-        worst = eigenvalues[np.argmax(eigenvalues.real)]
-        if worst.real > tolerance * max(1.0, np.abs(A0).max()):
-            raise ParameterError(
-                f"L: A0(t) = A(t) - L(t) C^T has the eigenvalue {worst:.6g} at t = {t:g} (real part > 0); "
-                f"choose L(t) so that A0 is uniformly stable (paper 001, Assumptions 3-4)")

@@ -59,12 +59,13 @@ def time_function(name: str, function: Callable, shape: tuple[int, ...]) -> Call
     return function
 
 
-def output_function(name: str, function: Callable) -> Callable:
-    """Check that ``function(y)`` maps a float to one finite float; return it."""
+def output_function(name: str, function: Callable, timed: bool = False) -> Callable:
+    """Check that ``function(y)`` (``timed``: ``function(t, y)``, at ``t = 0``) maps a float to one finite
+    float; return it."""
     if not callable(function):
         raise ParameterError(f"{name}: expected a function of y, got {function!r}")
     try:
-        values = [float(function(y)) for y in (0.0, 1.0)]
+        values = [float(function(0.0, y) if timed else function(y)) for y in (0.0, 1.0)]
     except Exception as exc:
         raise ParameterError(f"{name}: {name}(y) must return one number: {type(exc).__name__}: {exc}") from None
     if not all(math.isfinite(v) for v in values):

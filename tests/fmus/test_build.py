@@ -68,7 +68,7 @@ def test_build_builds_and_validates_each_distinct_fmu_once(monkeypatch, tmp_path
     distinct = {item.model_name if not isinstance(item, tuple) else item[0].model_name
                 for scenario in scenarios.SCENARIOS.values() for item in scenario.definitions()}
     assert sorted(built) == sorted(distinct) == sorted(validated)
-    assert {"ltv_ls_source", "ltv_ls_plant", "ltv_ls_observer"} <= set(built)    # shared by two scenarios
+    assert {"ltv_ls_plant", "ltv_ls_bounded_plant"} <= set(built)    # each system file its own FMUs
     assert capsys.readouterr().out.count("(valid)") == len(distinct)
 
 

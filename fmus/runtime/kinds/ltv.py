@@ -1,9 +1,10 @@
-"""Kinds for paper 001: the nonlinear LTV plant and its adaptive observer (least squares).
+"""Kinds for paper 001: the nonlinear LTV plant and its adaptive observer (LS, DREM or gradient).
 
-The user's model functions ``A(t)``, ``L(t)``, ``f(y)`` are ``"module:function"`` references in
-the definition's ``options`` (resolved here with :func:`fmus.runtime.callables.resolve`, never
-evaluated); everything numeric is an FMU parameter.  The dimension ``n`` is fixed when the FMU
-is built; the paper's functions are in :mod:`plants.ltv`.
+The user's model functions ``A(t)``, ``L(t)``, ``f(y)`` are ``"module:function"`` references or
+expression functions (:mod:`fmus.runtime.functions`) in the definition's ``options`` (resolved here
+with :func:`fmus.runtime.callables.resolve`, never evaluated); everything numeric is an FMU
+parameter.  The estimator is the option ``estimator`` (default least squares, the paper's).  The
+dimension ``n`` is fixed when the FMU is built; the paper's functions are in :mod:`plants.ltv`.
 """
 
 from __future__ import annotations
@@ -15,19 +16,38 @@ import numpy as np
 from observers.checks import ParameterError
 from observers.integrators import DEFAULT_SUBSTEP_BUDGET
 from observers.ltv import LTVAdaptiveObserver
+from observers.ltv.estimators import ESTIMATORS, require_exact
 from observers.ltv.observer import PARTS
 from plants.ltv import OutputNonlinearLTVPlant
 from plants.signals import SampledNoise
 
 from ..callables import reference, resolve
 from ..definition import FmuDefinition, Parameter, Port
+from ..functions import is_expression_function
 from . import register
-from .diagnostics import LS_CONTRACT, contract_parameters, contract_ports, contract_values
+from .diagnostics import LS_CONTRACT, Contract, contract_parameters, contract_ports, contract_values
 
 __all__ = ["ltv_plant_definition", "ltv_observer_definition"]
 
 PLANT_KIND = "ltv-output-nonlinear-plant"
 OBSERVER_KIND = "ltv-adaptive-observer"
+
+_BOUNDS = tuple(LS_CONTRACT.parameters[:2])      #: converged_tolerance and theta_bound, as least squares has them
+
+#: the diagnostics contract of each estimator (observers/ltv/estimators.py)
+CONTRACTS = {
+    "least-squares": LS_CONTRACT,
+    "drem": Contract(
+        "|Delta| of the row-normalised Kreisselmeier-extended regressor at the last step (0 <= Delta <= 1)",
+        "1 once max_i exp(-gamma int Delta^2) |Theta_tilde(0)| <= converged_tolerance (the DREM error identity, "
+        "exact regression), else 0",
+        _BOUNDS),
+    "gradient": Contract(
+        "1 - |T|_2, T the transition matrix of the gradient's error: the guaranteed fraction of the initial "
+        "error removed so far (0 to 1)",
+        "1 once |T|_2 |Theta_tilde(0)| <= converged_tolerance (exact regression), else 0",
+        _BOUNDS),
+}
 
 
 def _function(options: dict, key: str) -> Callable:
@@ -41,18 +61,38 @@ def _plant(p, options):
     noise = SampledNoise(float(p["noise_std"]), float(p["noise_dt"]), float(p["noise_seed"]))   # checks all three
     return OutputNonlinearLTVPlant(_function(options, "A"), p["C"], _function(options, "f"), p["k"], p["b"],
                                    p["m"], p["x0"], noise, float(p["max_substep"]), float(p["max_dy"]),
-                                   _degree(p), _budget(p))
+                                   _degree(p), _budget(p), f_time=_timed(options, "f"))
 
 
 @register(OBSERVER_KIND)
 def _observer(p, options):
     unknowns = _unknowns(options)
+    estimator = _estimator(options)
     known = {name: p.get(name) for name in PARTS if name not in unknowns}
+    contract = dict(zip(("converged_tolerance", "theta_bound", "regression_error_bound"),
+                        contract_values(p, CONTRACTS[estimator])))
+    least_squares = {name: float(p[name]) for name in ("beta", "f0", "M") if name in p}
     return LTVAdaptiveObserver(_function(options, "A"), p["C"], _function(options, "L"), _function(options, "f"),
-                               float(p["gamma"]), float(p["beta"]), float(p["f0"]), float(p["M"]),
-                               p["x_hat0"], p.get("k_hat0"), p.get("b_hat0"), p.get("m_hat0"),
-                               float(p["max_substep"]), float(p["max_dy"]), _degree(p), _budget(p),
-                               _flag(p, "f_correction"), *contract_values(p, LS_CONTRACT), unknowns=unknowns, **known)
+                               float(p["gamma"]), x_hat0=p["x_hat0"], k_hat0=p.get("k_hat0"),
+                               b_hat0=p.get("b_hat0"), m_hat0=p.get("m_hat0"), max_substep=float(p["max_substep"]),
+                               max_dy=float(p["max_dy"]), input_degree=_degree(p), substep_budget=_budget(p),
+                               f_correction=_flag(p, "f_correction"), unknowns=unknowns, estimator=estimator,
+                               extension_rate=float(p.get("extension_rate", 1.0)), f_time=_timed(options, "f"),
+                               **least_squares, **contract, **known)
+
+
+def _timed(options: dict, key: str) -> bool:
+    """The function option ``key`` is an expression function of ``(t, y)``: called ``f(t, y)``."""
+    option = options.get(key)
+    return is_expression_function(option) and list(option["arguments"][0]) == ["t", 0]
+
+
+def _estimator(options: dict) -> str:
+    """The option ``estimator`` (default least squares); refused naming the choices."""
+    name = options.get("estimator", ESTIMATORS[0])
+    if name not in ESTIMATORS:
+        raise ParameterError(f"estimator: expected one of {list(ESTIMATORS)}, got {name!r}")
+    return name
 
 
 def _unknowns(options: dict) -> tuple[str, ...]:
@@ -74,8 +114,18 @@ def _budget(p):
     return p.get("substep_budget", DEFAULT_SUBSTEP_BUDGET)
 
 
-def _reference(function: Callable | str) -> str:
-    return function if isinstance(function, str) else reference(function)
+def _reference(function: Callable | str | dict):
+    """A ``"module:function"`` reference or an expression function's option (a dict) as it is; a function
+    as its reference."""
+    return function if isinstance(function, (str, dict)) else reference(function)
+
+
+def _shown(option) -> str:
+    """A function option in a description: the reference, or the expressions."""
+    if isinstance(option, dict):
+        texts = option.get("expressions", [])
+        return "[" + ", ".join(texts) + "]" if len(texts) > 1 else "".join(texts)
+    return str(option)
 
 
 def _scalar(name, value, description, unit=None) -> Parameter:
@@ -121,7 +171,7 @@ def ltv_plant_definition(model_name: str, A, C, f, k, b, m, x0, *, noise_std=0.0
     definition = FmuDefinition(
         model_name=model_name, kind=PLANT_KIND, options=options,
         description=description or (f"paper 001 plant x' = A(t) x + k C^T x + b u + m f(y), y = C^T x + noise; "
-                                    f"A = {options['A']}, f = {options['f']}"),
+                                    f"A = {_shown(options['A'])}, f = {_shown(options['f'])}"),
         parameters=parameters,
         inputs=[Port("u", 1, "plant input u", scalar=True)],
         outputs=[Port("y", 1, "measured output y = C^T x (+ noise)", scalar=True),
@@ -137,13 +187,16 @@ def ltv_observer_definition(model_name: str, A, C, L, f, *, gamma=1000.0, beta=1
                             x_hat0=None, k_hat0=None, b_hat0=None, m_hat0=None, max_substep=1e-3,
                             max_dy=0.2, input_degree=2, f_correction=0, converged_tolerance=1e-3, theta_bound=100.0,
                             regression_error_bound=0.0, unknowns=PARTS, known: dict | None = None,
+                            estimator: str = "least-squares", extension_rate=1.0,
                             description: str = "") -> FmuDefinition:
     """Adaptive observer FMU of paper 001 (filters (2)-(6), regression (7), LS with forgetting, (10)).
 
     ``A``, ``L``, ``f`` are module-level functions or ``"module:function"`` references; ``C`` is
     the output vector (length n).  ``unknowns``: which of ``k``, ``b``, ``m`` are estimated (with
     ``x(0)``); the others are parameters with the values ``known[name]`` (vectors of n), and
-    ``theta_hat`` holds ``[-x(0); unknowns]`` only.  Checked by building the block once.
+    ``theta_hat`` holds ``[-x(0); unknowns]`` only.  ``estimator``: ``"least-squares"`` (parameters
+    ``gamma``, ``beta``, ``f0``, ``M``; output ``F_max``), ``"drem"`` (``gamma``, ``extension_rate``) or
+    ``"gradient"`` (``gamma``).  Checked by building the block once.
     """
     n = np.size(C)
     zeros = np.zeros(n)
@@ -152,6 +205,10 @@ def ltv_observer_definition(model_name: str, A, C, L, f, *, gamma=1000.0, beta=1
     options = {"A": _reference(A), "L": _reference(L), "f": _reference(f)}
     if unknowns != PARTS:
         options["unknowns"] = ",".join(unknowns)
+    if estimator != ESTIMATORS[0]:
+        options["estimator"] = estimator
+    contract = CONTRACTS[_estimator({"estimator": estimator})]
+    require_exact(estimator, float(regression_error_bound))
     starts = {"k": k_hat0, "b": b_hat0, "m": m_hat0}
     estimates = [("x_hat0", x_hat0, "initial estimate of x(0) (= x_hat(0))")] \
         + [(f"{name}_hat0", starts[name], f"initial estimate of {name}") for name in PARTS if name in unknowns]
@@ -165,34 +222,43 @@ def ltv_observer_definition(model_name: str, A, C, L, f, *, gamma=1000.0, beta=1
     parameters = [
         Parameter.of("C", C, "output vector, y = C^T x"),
     ] + values + [
-        _scalar("gamma", gamma, "adaptation gain of the least-squares estimator"),
-        _scalar("beta", beta, "forgetting factor", "1/s"),
-        _scalar("f0", f0, "F(0) = I / f0"),
-        _scalar("M", M, "bound on the largest eigenvalue of F"),
-    ] + [Parameter.of(name, zeros if value is None else value, text) for name, value, text in estimates] \
+        _scalar("gamma", gamma, f"adaptation gain of the {estimator} estimator"),
+    ] + _estimator_parameters(estimator, beta, f0, M, extension_rate) \
+      + [Parameter.of(name, zeros if value is None else value, text) for name, value, text in estimates] \
       + _stepping(max_substep, max_dy, input_degree) \
       + [_scalar("f_correction", f_correction, "1: inside a step y follows the polynomial of y - C^T m_hat "
                  "int f(y) plus that fast part (for outputs f(y) makes oscillate between samples); "
                  "0: the polynomial of y")] \
-      + contract_parameters(LS_CONTRACT, converged_tolerance=converged_tolerance, theta_bound=theta_bound,
+      + contract_parameters(contract, converged_tolerance=converged_tolerance, theta_bound=theta_bound,
                             regression_error_bound=regression_error_bound)
     definition = FmuDefinition(
         model_name=model_name, kind=OBSERVER_KIND, options=options,
-        description=description or (f"paper 001 adaptive observer: filters (2)-(6), regression (7), least squares "
-                                    f"with forgetting, estimate (10); A = {options['A']}, L = {options['L']}, "
-                                    f"f = {options['f']}"),
+        description=description or (f"paper 001 adaptive observer: filters (2)-(6), regression (7), {estimator} "
+                                    f"estimator, estimate (10); A = {_shown(options['A'])}, "
+                                    f"L = {_shown(options['L'])}, f = {_shown(options['f'])}"),
         parameters=parameters,
         inputs=[Port("u", 1, "plant input u", scalar=True), Port("y", 1, "measured output y", scalar=True)],
         outputs=[Port("x_hat", n, "state estimate x_hat (10)"),
                  Port("theta_hat", n * (1 + len(unknowns)), f"estimate of Theta = [-x(0); {'; '.join(unknowns)}]"
                       if unknowns else "estimate of Theta = -x(0)"),
                  Port("k_hat", n, "estimate of k"), Port("b_hat", n, "estimate of b"),
-                 Port("m_hat", n, "estimate of m"), Port("x0_hat", n, "estimate of x(0)"),
-                 Port("F_max", 1, "largest eigenvalue of the estimator gain F (bounded by M)", scalar=True)]
-                + contract_ports(LS_CONTRACT),
+                 Port("m_hat", n, "estimate of m"), Port("x0_hat", n, "estimate of x(0)")]
+                + ([Port("F_max", 1, "largest eigenvalue of the estimator gain F (bounded by M)", scalar=True)]
+                   if estimator == ESTIMATORS[0] else [])
+                + contract_ports(contract),
     )
     _check(definition)
     return definition
+
+
+def _estimator_parameters(estimator: str, beta, f0, M, extension_rate) -> list[Parameter]:
+    if estimator == "least-squares":
+        return [_scalar("beta", beta, "forgetting factor", "1/s"), _scalar("f0", f0, "F(0) = I / f0"),
+                _scalar("M", M, "bound on the largest eigenvalue of F")]
+    if estimator == "drem":
+        return [_scalar("extension_rate", extension_rate, "rate a of the Kreisselmeier extension "
+                        "Phi_e' = -a Phi_e + Psi^T Psi", "1/s")]
+    return []
 
 
 def _check(definition: FmuDefinition) -> None:

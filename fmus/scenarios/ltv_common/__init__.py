@@ -1,12 +1,13 @@
-"""What the paper-001 scenarios ``ltv-ls`` and ``ltv-ls-bounded`` share: FMUs, summary, figure, references.
+"""What the paper-001 scenarios ``ltv-ls`` and ``ltv-ls-bounded`` share: summary, figure, references, measures.
 
-Not a scenario itself (no ``SCENARIO``).  Three FMUs, stepped in this order (Gauss-Seidel): the
-signal source ``u = sin t``, the plant (1) ``x' = A(t) x + k C^T x + b u + m sin(y)``, ``y = x1``,
-and the observer: filters (2)-(6), regression (7), least squares with forgetting (``gamma = 1000``,
-``beta = 1``, ``f0 = 0.1``, ``M = 1e12``), estimate (10).  The two scenarios differ only in the
-plant's unknowns and in the stepping settings chosen against their stored references
-(``reference.csv`` in each folder, written by :mod:`.reference`, the independent monolithic
-solution).  Why these defaults, and what they cost: ``docs/paper001.md``, section 3.
+Not a scenario itself (no ``SCENARIO``).  Each scenario is its folder's ``system.toml`` (three FMUs,
+stepped in this order, Gauss-Seidel: the source ``u = sin t``, the plant (1) ``x' = A(t) x + k C^T x
++ b u + m sin(y)``, ``y = x1``, and the observer: filters (2)-(6), regression (7), least squares with
+forgetting, estimate (10)); each file builds its own FMUs ``<name>_<instance>`` (``ltv_ls_plant``,
+``ltv_ls_bounded_plant``), so each FMU's DefaultExperiment and start values are its scenario's.  The
+two differ in the plant's unknowns and in the stepping settings chosen against their stored
+references (``reference.csv`` in each folder, written by :mod:`.reference`, the independent
+monolithic solution).  Why these defaults, and what they cost: ``docs/paper001.md``, section 3.
 """
 
 from __future__ import annotations
@@ -15,54 +16,20 @@ from pathlib import Path
 
 import numpy as np
 
-from ...runtime.definition import experiment
-from ...runtime.kinds.ltv import ltv_observer_definition, ltv_plant_definition
-from ...runtime.kinds.signals import source_definition
-from ...master import Connection
 from ...metrics import format_time, time_to_stay_below
 from ...plotting import Curve, Panel, figure
 from ...result import Result
-from .. import Scenario, Summary, changed_parameters
+from ...system.papers import paper_scenario
+from .. import Summary, changed_parameters
 from .measures import MEASURE, TOLERANCE
 
 ROOT = Path(__file__).parent.parent
 C = [1.0, 0.0]
-#: the paper's unknowns ``k``, ``b``, ``m``, ``x(0)``: the plant FMU's start values (scenario ``ltv-ls``)
-PAPER = {"k": [-1.0, 3.0], "b": [1.0, 2.0], "m": [-4.0, 4.0], "x0": [-3.0, -2.0]}
 #: the stored monolithic reference of each case (``python -m fmus.scenarios.ltv_common.reference --write``)
 REFERENCES = {"paper": ROOT / "ltv_ls" / "reference.csv", "bounded": ROOT / "ltv_ls_bounded" / "reference.csv"}
 #: which case's reference applies to a run of each scenario
 CASES = {"ltv-ls": "paper", "ltv-ls-bounded": "bounded"}
 NAMES = ["-x0[1]", "-x0[2]", "k[1]", "k[2]", "b[1]", "b[2]", "m[1]", "m[2]"]  #: Theta's entries
-
-#: a-priori bound on every entry of Theta = [-x(0); k; b; m] given to the observer's converged flag
-#: (both scenarios' entries are within 4)
-THETA_BOUND = 5.0
-
-
-#: the shared FMUs' DefaultExperiment: the paper's case (scenario ``ltv-ls``, 0..15 s at 1e-3 s), one definition
-#: per FMU whichever scenario builds it (``ltv-ls-bounded`` runs them 0..20 s at 1e-2 s with its start values)
-PAPER_RUN = (15.0, 1e-3)
-PAPER_EXPERIMENT = experiment(*PAPER_RUN)
-
-
-def definitions():
-    found = [
-        source_definition("ltv_ls_source", sines=1, amplitude=[1.0], omega=[1.0],
-                          description="u(t) = sin t (paper 001)"),
-        ltv_plant_definition("ltv_ls_plant", "plants.ltv:A_paper", C, "plants.ltv:f_sin", **PAPER,
-                             description="paper 001 plant x' = A(t) x + k C^T x + b u + m sin(y), y = x1 (+ noise)"),
-        ltv_observer_definition("ltv_ls_observer", "plants.ltv:A_paper", C, "plants.ltv:L_paper",
-                                "plants.ltv:f_sin", theta_bound=THETA_BOUND),
-    ]
-    for definition in found:
-        definition.default_experiment = dict(PAPER_EXPERIMENT)
-    return found
-
-
-def plant_start(unknowns: dict) -> dict[str, float]:
-    """Start values of the plant FMU's parameters for ``k``, ``b``, ``m``, ``x0``."""
-    return {f"{name}[{i + 1}]": float(v) for name, values in unknowns.items() for i, v in enumerate(values)}
 
 
 def errors(result: Result) -> dict[str, np.ndarray]:
@@ -205,19 +172,8 @@ def plot(result: Result, path: Path) -> list[Path]:
                   panels, result.time_unit)
 
 
-COMPONENTS = ("source", "ltv_ls_source"), ("plant", "ltv_ls_plant"), ("observer", "ltv_ls_observer")
-CONNECTIONS = [Connection("source.y", "plant.u"), Connection("source.y", "observer.u"),
-               Connection("plant.y", "observer.y")]
-
-
-def scenario(name, description, unknowns, stop_time, step, claim, stepping=None, ramp=0, plant=None, observer=None,
-             adaptive_floor=None) -> Scenario:
-    """A scenario on the shared FMUs: the plant's ``unknowns``, the stepping settings as start values."""
-    stepping = stepping or {}
-    starts = {"plant": {**plant_start(unknowns), **stepping, **(plant or {})},
-              "observer": {**stepping, **(observer or {})}}
-    return Scenario(name=name, description=description, definitions=definitions,
-                    components=[(instance, model, starts.get(instance, {})) for instance, model in COMPONENTS],
-                    connections=CONNECTIONS, stop_time=stop_time, step=step, order="gauss-seidel",
-                    coupling="linear", summarize=summarize, plot=plot, output_interval=1e-2, ramp=ramp,
-                    claim=claim, adaptive_floor=adaptive_floor, measure=MEASURE)
+def scenario(name: str, claim: str, adaptive_floor=None):
+    """The scenario ``name`` of its folder's ``system.toml``, with the paper's summary, figure, measure and claim."""
+    folder = ROOT / name.replace("-", "_")
+    return paper_scenario(folder / "system.toml", name, summarize=summarize, plot=plot, measure=MEASURE, claim=claim,
+                          adaptive_floor=adaptive_floor)

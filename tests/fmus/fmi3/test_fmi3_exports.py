@@ -120,8 +120,8 @@ def test_fmu_copies_carry_the_start_values(build_dir, tmp_path, fmi_version):
     path = export(get("ltv-ls-bounded"), "ssp", tmp_path, build_dir, overrides=[("plant", "x0[2]", 0.25)],
                   fmi_version=fmi_version)
     with zipfile.ZipFile(path) as package:
-        package.extract("resources/ltv_ls_plant.fmu", tmp_path)
-    copy = tmp_path / "resources" / "ltv_ls_plant.fmu"
+        package.extract("resources/ltv_ls_bounded_plant.fmu", tmp_path)
+    copy = tmp_path / "resources" / "ltv_ls_bounded_plant.fmu"
     declared = {v.name: v.start for v in read_model_description(str(copy)).modelVariables}
     if fmi_version == 2:
         assert float(declared["x0[1]"]) == 2.0 and float(declared["x0[2]"]) == 0.25

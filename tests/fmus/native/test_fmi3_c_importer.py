@@ -18,7 +18,8 @@ from native_harness import Unzipped, read_csv, run as run_importer, scenario_scr
 
 #: (name, scenario, FMI 3.0 models, stop time, step): short runs at the scenario's coupling (linear)
 RUNS = [("ship3", "ship", {"ship_plant", "ship_observer", "ship_controller"}, 0.2, 1e-4),
-        ("ltv3", "ltv-ls-bounded", {"ltv_ls_source", "ltv_ls_plant", "ltv_ls_observer"}, 2.0, 1e-3),
+        ("ltv3", "ltv-ls-bounded", {"ltv_ls_bounded_source", "ltv_ls_bounded_plant",
+                                     "ltv_ls_bounded_observer"}, 2.0, 1e-3),
         ("mixed", "ship", {"ship_observer"}, 0.2, 1e-4)]
 
 

@@ -1,7 +1,7 @@
 """Every FMU declares a ``DefaultExperiment`` (issue 28.6): the start, stop and step of its scenario or design,
 in its FMI 2.0 and FMI 3.0 modelDescription, so that importers run it without options.
 
-The FMUs ``ltv-ls`` and ``ltv-ls-bounded`` share (one definition each) declare the paper's case, ``ltv-ls``.
+``ltv-ls`` and ``ltv-ls-bounded`` are system files, each with its own FMUs declaring its own run.
 """
 
 import pytest
@@ -9,7 +9,7 @@ from fmpy import read_model_description
 
 from fmus.scenarios import SCENARIOS
 
-SHARED = {"ltv_ls_source", "ltv_ls_plant", "ltv_ls_observer"}
+PAPER_001 = {"ltv_ls_source", "ltv_ls_plant", "ltv_ls_observer"}
 
 
 def declared(path) -> tuple[float, float, float, object]:
@@ -22,20 +22,20 @@ def declared(path) -> tuple[float, float, float, object]:
 @pytest.mark.parametrize("fixture", ["every_fmu", "every_fmu3"])
 def test_every_fmu_declares_the_run_of_its_scenario(request, fixture):
     fmus = request.getfixturevalue(fixture)
-    by_model = {model: scenario for scenario in SCENARIOS.values() for _, model, _ in scenario.components
-                if scenario.name != "ltv-ls-bounded"}
+    by_model = {model: scenario for scenario in SCENARIOS.values() for _, model, _ in scenario.components}
     assert set(by_model) == set(fmus) and len(fmus) >= 17
     for model, (_, path) in fmus.items():
         scenario = by_model[model]
         assert declared(path) == (0.0, scenario.stop_time, scenario.step, None), model
-    assert {m for m, s in by_model.items() if s.name == "ltv-ls"} == SHARED
+    assert {m for m, s in by_model.items() if s.name == "ltv-ls"} == PAPER_001
 
 
-def test_the_shared_fmus_declare_the_paper_case_not_the_bounded_one(every_fmu):
+def test_the_bounded_case_declares_its_own_run_not_the_paper_case(every_fmu):
     bounded = SCENARIOS["ltv-ls-bounded"]
-    for model in SHARED:
-        start, stop, step, _ = declared(every_fmu[model][1])
-        assert (stop, step) == (15.0, 1e-3) != (bounded.stop_time, bounded.step)
+    for model in PAPER_001:
+        _, stop, step, _ = declared(every_fmu[model][1])
+        _, bounded_stop, bounded_step, _ = declared(every_fmu[model.replace("ltv_ls", "ltv_ls_bounded")][1])
+        assert (stop, step) == (15.0, 1e-3) and (bounded_stop, bounded_step) == (20.0, 1e-2)
 
 
 def test_a_design_built_alone_declares_its_own_run(tmp_path):

@@ -46,11 +46,12 @@ def set_plant(unknowns):
     return [("plant", f"{name}[{i + 1}]", v) for name, values in unknowns.items() for i, v in enumerate(values)]
 
 
-def test_fmus_are_valid_and_shared_by_both_scenarios(fmus):
+def test_fmus_are_valid_and_each_system_file_has_its_own(fmus):
     assert set(fmus) == {"ltv_ls_source", "ltv_ls_plant", "ltv_ls_observer"}
     for path in fmus.values():
         assert validate_fmu(str(path)) == [], path
-    assert {d.model_name for d in get("ltv-ls-bounded").definitions()} == set(fmus)
+    assert {d.model_name for d in get("ltv-ls-bounded").definitions()} == {
+        "ltv_ls_bounded_source", "ltv_ls_bounded_plant", "ltv_ls_bounded_observer"}
     plant = {v.name: v for v in read_model_description(str(fmus["ltv_ls_plant"])).modelVariables}
     assert {"k[2]", "b[1]", "m[2]", "x0[1]", "C[1]", "noise_std", "noise_seed", "u_interpolation",
             "y", "x[2]", "theta[8]"} <= set(plant)

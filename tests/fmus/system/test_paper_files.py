@@ -63,7 +63,6 @@ def test_the_shown_file_runs_as_the_scenario_bit_for_bit(name, scenario_csv, bui
     assert from_file == scenario_csv(name)
 
 
-@pytest.mark.xfail(strict=True, reason="families converting in parallel")
 def test_every_paper_scenario_is_a_system_file():
     without = sorted(name for name, scenario in SCENARIOS.items() if scenario.system_file is None)
     assert not without, f"scenarios without a system file: {', '.join(without)}"

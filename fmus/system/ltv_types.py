@@ -1,0 +1,195 @@
+"""Component types ``ltv-plant`` and ``ltv-adaptive-observer`` of a system file (paper 001).
+
+The plant class of paper 001, ``x' = A(t) x + k C^T x + b u + m f(y, t)``, ``y = C^T x``: ``A(t)`` and
+``L(t)`` are expressions of ``t``, ``f`` an expression of ``y`` and ``t`` (one nonlinearity), ``C`` a
+constant vector (the observer does not support the paper's ``C(t)``: a text in ``C`` is refused saying so).  Every assumption that
+can be checked numerically is checked before anything is built (:mod:`observers.ltv.assumptions`):
+the dimensions; ``(A0(t), C^T)`` observable and ``A0(t) = A(t) - L(t) C^T`` stable at 200 points of
+``[0, stop_time]`` -- exactly if ``A0`` is constant, else frozen-time eigenvalues, which are only a
+necessary condition; the unknowns among ``k``, ``b``, ``m`` and the known values of the others.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from observers.checks import ParameterError
+from observers.ltv.assumptions import require_assumptions
+from observers.ltv.estimators import ESTIMATORS
+from observers.ltv.observer import PARTS
+
+from ..runtime.callables import resolve
+from ..runtime.functions import compiled, expression_function
+from ..runtime.kinds.ltv import ltv_observer_definition, ltv_plant_definition
+from .schema import Context, Field, register
+
+__all__ = ["GRID_POINTS"]
+
+GRID_POINTS = 200          #: the points of [0, stop_time] at which A0(t) and (A0(t), C^T) are checked
+_DEFAULT_HORIZON = 10.0    #: the grid's end when the experiment gives no stop time
+
+_MODEL = (
+    Field("A", "expression-matrix", "A(t): n x n expressions of the time t (or numbers)", unit="1/s",
+          example='[["2 - sin(t)", 1], ["-8 + cos(t)", 0]]'),
+    Field("C", "expression-vector", "output vector, y = C^T x (n numbers; the paper's C(t) is not supported)",
+          example="[1, 0]"),
+    Field("f", "expression", "the known nonlinearity f(y, t) of m f(y, t) (an expression of y and t)", "0",
+          example='"sin(y)"'),
+    Field("constants", "table", "named constants the expressions may use", None, example="{ w = 2.0 }"),
+)
+_STEPPING = (
+    Field("max_substep", "number", "longest RK4 sub-step inside a communication step", 1e-3, "s", "5e-3"),
+    Field("max_dy", "number", "largest change of y over one RK4 sub-step (resolves f(y))", 0.2, "(y)", "0.1"),
+    Field("input_degree", "integer", "degree of the polynomial through the last communication points that "
+          "interpolated inputs follow inside a step (1 to 5; with noisy samples 1 or 2)", 2, example="3"),
+)
+
+
+def _vector(values: dict, name: str, n: int, prefix: str, default=None):
+    value = values[name]
+    if value is None:
+        return default
+    if np.size(value) != n:
+        raise ParameterError(f"{prefix}{name}: expected {n} entries (n = the entries of C), got {np.size(value)}")
+    return list(map(float, value))
+
+
+def _output_vector(values: dict, prefix: str) -> list[float]:
+    """``C``: numbers only (a text would be ``C(t)``, which the observer does not support)."""
+    C = values["C"]
+    texts = [entry for entry in C if isinstance(entry, str)]
+    if texts:
+        raise ParameterError(f"{prefix}C: {texts[0]!r} is an expression; a time-varying C(t) (paper 001 allows it) is "
+                             "not supported by this observer: give n numbers")
+    if not any(C):
+        raise ParameterError(f"{prefix}C: the output vector is zero; y = C^T x would measure nothing")
+    return [float(v) for v in C]
+
+
+def _functions(values: dict, n: int, prefix: str, names=("A", "f")) -> dict:
+    """The expression functions of ``names`` (A(t): n x n, L(t): n, f(y, t): scalar), each checked as it compiles.
+
+    ``f`` is a function of ``(t, y)`` only if its text reads ``t`` (else of ``y``: the kinds then call it
+    ``f(y)``, and ``f_correction`` applies)."""
+    constants = values["constants"] or {}
+    shapes = {"A": ((("t", 0),), (n, n)), "L": ((("t", 0),), (n,)), "f": ((("t", 0), ("y", 0)), ())}
+    found = {name: expression_function(values[name], shapes[name][0], shapes[name][1], constants=constants,
+                                       field=prefix + name) for name in names}
+    if "t" not in compiled(found["f"]).vector.uses:
+        found["f"] = expression_function(values["f"], (("y", 0),), (), constants=constants, field=prefix + "f")
+    return found
+
+
+def _define_plant(model_name: str, values: dict, context: Context) -> list:
+    prefix = context.prefix
+    C = _output_vector(values, prefix)
+    n = len(C)
+    functions = _functions(values, n, prefix)
+    zeros = [0.0] * n
+    parts = {name: _vector(values, name, n, prefix, zeros) for name in (*PARTS, "x0")}
+    return [ltv_plant_definition(model_name, functions["A"], C, functions["f"], **parts,
+                                 noise_std=values["noise_std"], noise_dt=values["noise_dt"],
+                                 noise_seed=values["noise_seed"], max_substep=values["max_substep"],
+                                 max_dy=values["max_dy"], input_degree=values["input_degree"],
+                                 description=values["description"])]
+
+
+register("ltv-plant", "Plant of paper 001: `x' = A(t) x + k C^T x + b u + m f(y)`, `y = C^T x + v` (v: measurement "
+         "noise, held over `noise_dt`). Input `u`; outputs `y`, the true state `x` and the true `theta = [-x(0); k; "
+         "b; m]` (to compare with an observer's `theta_hat` when all of k, b, m are unknown).", _MODEL + (
+             Field("k", "vector", "the output injection k of k C^T x (absent: zero)", None, example="[-1, 3]"),
+             Field("b", "vector", "the input vector b of b u (absent: zero)", None, example="[1, 2]"),
+             Field("m", "vector", "the gain m of m f(y) (absent: zero)", None, example="[-4, 4]"),
+             Field("x0", "vector", "initial state x(0) (absent: zero)", None, example="[-3, -2]"),
+             Field("noise_std", "number", "standard deviation of the Gaussian measurement noise v on y (0: none)",
+                   0.0, "(y)", "0.01"),
+             Field("noise_dt", "number", "hold interval of the measurement noise", 1e-3, "s", "1e-3"),
+             Field("noise_seed", "integer", "seed of the measurement noise (>= 0)", 0, example="7"),
+         ) + _STEPPING, _define_plant)
+
+
+def _unknowns(values: dict, prefix: str) -> tuple[str, ...]:
+    names = [name.strip() for name in values["unknowns"].split(",") if name.strip()]
+    wrong = [name for name in names if name not in PARTS]
+    if wrong or len(set(names)) != len(names):
+        raise ParameterError(f"{prefix}unknowns: expected distinct names among k, b, m separated by commas (x(0) is "
+                             f"always estimated; no other unknown fits paper 001's regression (7)), got "
+                             f"{values['unknowns']!r}")
+    return tuple(name for name in PARTS if name in names)
+
+
+def _known(values: dict, unknowns, n: int, prefix: str) -> dict:
+    """The values of the known parts; a value for an unknown part, or a known part without one, refused."""
+    known = {}
+    for name in PARTS:
+        given = values[name] is not None
+        if name in unknowns and given:
+            raise ParameterError(f"{prefix}{name}: {name} is in unknowns (estimated); give no value, or remove it from "
+                                 "unknowns")
+        if name not in unknowns:
+            if not given:
+                raise ParameterError(f"{prefix}{name}: {name} is known (not in unknowns); its value is required (zeros "
+                                     "if the plant has none)")
+            known[name] = _vector(values, name, n, prefix)
+        if name not in unknowns and values[f"{name}_hat0"] is not None:
+            raise ParameterError(f"{prefix}{name}_hat0: {name} is known (not in unknowns); it has no estimate")
+    return known
+
+
+def _grid(context: Context) -> np.ndarray:
+    return np.linspace(0.0, context.stop_time or _DEFAULT_HORIZON, GRID_POINTS)
+
+
+def _define_observer(model_name: str, values: dict, context: Context) -> list:
+    prefix = context.prefix
+    C = _output_vector(values, prefix)
+    n = len(C)
+    functions = _functions(values, n, prefix, ("A", "L", "f"))
+    unknowns = _unknowns(values, prefix)
+    known = _known(values, unknowns, n, prefix)
+    test = require_assumptions(resolve(functions["A"]), resolve(functions["L"]), np.array(C), _grid(context))
+    context.notes.append(f"{prefix.rstrip('.')}: A0(t) = A(t) - L(t) C^T "
+                         + ("constant, uniformly stable" if test == "constant" else
+                            f"stable at {GRID_POINTS} frozen times of [0, {_grid(context)[-1]:g}] (necessary only)"))
+    starts = {f"{name}_hat0": _vector(values, f"{name}_hat0", n, prefix) for name in ("x", *unknowns)}
+    return [ltv_observer_definition(
+        model_name, functions["A"], C, functions["L"], functions["f"], gamma=values["gamma"], beta=values["beta"],
+        f0=values["f0"], M=values["M"], **starts, max_substep=values["max_substep"], max_dy=values["max_dy"],
+        input_degree=values["input_degree"], f_correction=float(values["f_correction"]),
+        converged_tolerance=values["converged_tolerance"], theta_bound=values["theta_bound"],
+        regression_error_bound=values["regression_error_bound"], unknowns=unknowns, known=known,
+        estimator=values["estimator"], extension_rate=values["extension_rate"], description=values["description"])]
+
+
+register("ltv-adaptive-observer", "Adaptive observer of paper 001 for a plant `x' = A(t) x + k C^T x + b u + m f(y)`, "
+         "`y = C^T x`: filters (2)-(6), regression (7) in `Theta = [-x(0); the unknowns]`, an estimator, the state "
+         "(10). Needs `L(t)` with `A0(t) = A(t) - L(t) C^T` uniformly stable (Assumptions 3-4) and `(A0, C^T)` "
+         "observable. Inputs `u`, `y`; outputs `x_hat`, `theta_hat`, `k_hat`, `b_hat`, `m_hat`, `x0_hat`, "
+         "`F_max` (least squares), `excitation`, `converged`.", _MODEL + (
+             Field("L", "expression-vector", "L(t): n expressions of t making A0(t) = A(t) - L(t) C^T uniformly "
+                   "stable", unit="1/s", example='["2 - sin(t)", "1 + cos(t)"]'),
+             Field("unknowns", "string", "which of k, b, m are estimated (with x(0)), separated by commas; \"\": x(0) "
+                   "only", "k, b, m", example='"k"'),
+             Field("k", "vector", "the known k (exactly when k is not in unknowns)", None, example="[-1, 3]"),
+             Field("b", "vector", "the known b (exactly when b is not in unknowns)", None, example="[0, 1]"),
+             Field("m", "vector", "the known m (exactly when m is not in unknowns)", None, example="[0, -0.5]"),
+             Field("estimator", "choice", "the estimator of regression (7)", ESTIMATORS[0], choices=ESTIMATORS),
+             Field("gamma", "number", "adaptation gain of the estimator", 1000.0, "", "100"),
+             Field("beta", "number", "least squares: forgetting factor", 1.0, "1/s", "0.5"),
+             Field("f0", "number", "least squares: F(0) = I / f0", 0.1, "", "0.1"),
+             Field("M", "number", "least squares: bound on the largest eigenvalue of F", 1e12, "", "1e12"),
+             Field("extension_rate", "number", "DREM: rate a of the extension Phi_e' = -a Phi_e + Psi^T Psi", 1.0,
+                   "1/s", "2"),
+             Field("x_hat0", "vector", "initial estimate of x(0) (absent: zero)", None, example="[0, 0]"),
+             Field("k_hat0", "vector", "initial estimate of k (absent: zero)", None, example="[0, 0]"),
+             Field("b_hat0", "vector", "initial estimate of b (absent: zero)", None, example="[0, 0]"),
+             Field("m_hat0", "vector", "initial estimate of m (absent: zero)", None, example="[0, 0]"),
+             Field("f_correction", "boolean", "resolve inside a step the fast part of y that m f(y) drives (outputs "
+                   "f(y) makes oscillate between samples; docs/paper001.md, section 2)", False, example="true"),
+             Field("converged_tolerance", "number", "converged = 1 once the estimator's guaranteed bound on "
+                   "|Theta_hat - Theta| is at most this", 1e-3, "", "1e-2"),
+             Field("theta_bound", "number", "a-priori bound on every entry of Theta (the converged criterion's "
+                   "assumption)", 100.0, "", "5"),
+             Field("regression_error_bound", "number", "least squares: a-priori bound on |z - Psi Theta| (noise); 0: "
+                   "exact", 0.0, "(y)", "0.01"),
+         ) + _STEPPING, _define_observer)
