@@ -5,6 +5,7 @@ file system; 128 + the signal when interrupted)."""
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 from collections.abc import Callable
 
