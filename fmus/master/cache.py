@@ -10,6 +10,13 @@ written and again while writing (a header that lies about a size cannot exceed t
 
 Beyond them, and for names that leave the folder (``..``, absolute, drive letters, backslashes), the FMU is
 refused at once (:class:`~fmus.master.errors.SimulationError` naming the limit) and nothing stays in the cache.
+
+An open FMU keeps reading its folder: ``fmi2Reset`` creates the slave again from ``resources/`` (its
+definition), so a :class:`~fmus.master.Session` reused for minutes (the workers of ``obsfmu sweep``) needs
+its entries long after it opened them, while other runs on the machine (a test suite extracts hundreds of
+FMUs) prune the cache.  :func:`leased` hands out the folder with a :class:`Lease` -- a shared ``flock`` on
+the entry's :data:`LEASE` file, held until the instance closes (or its process ends) -- and pruning, in any
+process, skips an entry it cannot lock exclusively.
 """
 
 from __future__ import annotations
@@ -19,14 +26,20 @@ import os
 import shutil
 import tempfile
 import time as wallclock
+import uuid
 import zipfile
 from pathlib import Path, PurePosixPath
 
 from ..caches import writable
 from .errors import SimulationError
 
+try:
+    import fcntl
+except ImportError:                      # Windows: no leases, pruning removes what it chooses (as before)
+    fcntl = None
+
 __all__ = ["EXTRACT_CACHE", "EXTRACT_CACHE_SIZE", "ABANDONED_AFTER", "MAX_UNPACKED", "MAX_ENTRIES", "MAX_RATIO",
-           "RATIO_FROM", "extracted", "unzip"]
+           "RATIO_FROM", "LEASE", "Lease", "extracted", "leased", "unzip"]
 
 #: extracted FMUs, by content (``OBSFMU_CACHE`` overrides); the newest are kept
 EXTRACT_CACHE = Path(os.environ.get("OBSFMU_CACHE", Path.home() / ".cache" / "obsfmu")) / "extracted"
@@ -39,10 +52,53 @@ MAX_ENTRIES = 10_000
 MAX_RATIO = 100
 RATIO_FROM = 1 << 20
 _CHUNK = 1 << 20
+#: the file of an entry that its users lock (shared) and pruning locks (exclusive)
+LEASE = ".obsfmu-in-use"
+_ATTEMPTS = 5
+
+
+class Lease:
+    """A cache entry in use: pruning leaves it alone until :meth:`release` (idempotent) or the process ends."""
+
+    def __init__(self, fd: int | None):
+        self._fd = fd
+
+    def release(self) -> None:
+        if self._fd is not None:
+            os.close(self._fd)           # closing the file drops its lock
+            self._fd = None
+
+    __del__ = release                    # an instance dropped without close: its entry may go again
+
+
+def _lease(folder: Path) -> Lease | None:
+    """A shared lock on ``folder``'s :data:`LEASE`; None when ``folder`` is gone or being pruned."""
+    if fcntl is None:
+        return Lease(None) if folder.is_dir() else None
+    try:
+        fd = os.open(folder / LEASE, os.O_RDWR | os.O_CREAT, 0o600)
+    except OSError:
+        return None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        if os.stat(folder / LEASE).st_ino == os.fstat(fd).st_ino:   # still there, not renamed away meanwhile
+            return Lease(fd)
+    except OSError:
+        pass
+    os.close(fd)
+    return None
 
 
 def extracted(fmu: Path) -> Path:
-    """The FMU unzipped once per content (sha256) into :data:`EXTRACT_CACHE` and reused.
+    """The folder of :func:`leased`, not held: for a caller that reads it at once (pruning may remove it later)."""
+    folder, lease = leased(fmu)
+    lease.release()
+    return folder
+
+
+def leased(fmu: Path) -> tuple[Path, Lease]:
+    """The FMU unzipped once per content (sha256) into :data:`EXTRACT_CACHE` and reused, with a
+    :class:`Lease` that keeps pruning from removing it until released (module docstring).
 
     Unzipping every FMU afresh (its bundled code: ~100 files) cost 0.15 s of every ``obsfmu run``, plus
     compiling the bundled modules again each time.  Entries are written to a temporary sibling and renamed
@@ -53,24 +109,33 @@ def extracted(fmu: Path) -> Path:
     digest = hashlib.sha256(Path(fmu).read_bytes()).hexdigest()[:32]
     cache = writable(EXTRACT_CACHE, "OBSFMU_CACHE")
     target = cache / digest
-    if target.is_dir():
+    for _ in range(_ATTEMPTS):
+        lease = _lease(target)
+        if lease is not None:
+            try:
+                os.utime(target)
+                return target, lease
+            except OSError:              # pruned on a system without leases: extract it again
+                lease.release()
+        partial = Path(tempfile.mkdtemp(prefix=f".{digest}.", dir=cache))
         try:
-            os.utime(target)
-            return target
-        except OSError:                  # another run pruned it just now: extract it again
-            pass
-    partial = Path(tempfile.mkdtemp(prefix=f".{digest}.", dir=cache))
-    try:
-        unzip(Path(fmu), partial)
-    except BaseException:                # refused, damaged or interrupted: nothing stays
-        shutil.rmtree(partial, ignore_errors=True)
-        raise
-    try:
-        os.replace(partial, target)
-    except OSError:                      # another run extracted it meanwhile
-        shutil.rmtree(partial, ignore_errors=True)
-    _prune(cache, keep=target)
-    return target
+            unzip(Path(fmu), partial)
+        except BaseException:            # refused, damaged or interrupted: nothing stays
+            shutil.rmtree(partial, ignore_errors=True)
+            raise
+        lease = _lease(partial)          # the lock moves with the folder
+        try:
+            os.replace(partial, target)
+        except OSError:                  # another run extracted it meanwhile (or is pruning it): lease that one
+            if lease is not None:
+                lease.release()
+            shutil.rmtree(partial, ignore_errors=True)
+            continue
+        _prune(cache, keep=target)
+        if lease is not None:
+            return target, lease
+    raise SimulationError(f"{fmu}: its folder in the extraction cache {cache} was removed {_ATTEMPTS} times "
+                          f"while it was being opened (other runs pruning the cache?)")
 
 
 def unzip(fmu: Path, folder: Path) -> None:
@@ -124,9 +189,10 @@ def _too_large(fmu: Path, found: str) -> str:
 
 
 def _prune(cache: Path, keep: Path) -> None:
-    """Remove all but the :data:`EXTRACT_CACHE_SIZE` most recently used entries (never ``keep``), and
-    partial extractions older than :data:`ABANDONED_AFTER` seconds (a run killed while extracting).
-    Other processes prune the same cache at the same time: an entry gone meanwhile is skipped."""
+    """Remove all but the :data:`EXTRACT_CACHE_SIZE` most recently used entries (never ``keep``, nor one
+    under a :class:`Lease`), and partial extractions older than :data:`ABANDONED_AFTER` seconds (a run
+    killed while extracting).  Other processes prune the same cache at the same time: an entry gone
+    meanwhile is skipped."""
     used, abandoned, now = [], [], wallclock.time()
     for entry in cache.iterdir():
         try:
@@ -137,6 +203,30 @@ def _prune(cache: Path, keep: Path) -> None:
             used.append((modified, entry.name))
         elif now - modified > ABANDONED_AFTER:
             abandoned.append(entry.name)
-    for name in abandoned + [name for _, name in sorted(used, reverse=True)[EXTRACT_CACHE_SIZE:]]:
+    for name in abandoned:
+        shutil.rmtree(cache / name, ignore_errors=True)
+    for _, name in sorted(used, reverse=True)[EXTRACT_CACHE_SIZE:]:
         if name != keep.name:
-            shutil.rmtree(cache / name, ignore_errors=True)
+            _remove_unused(cache, name)
+
+
+def _remove_unused(cache: Path, name: str) -> None:
+    """Remove the entry ``name`` unless it is leased: under an exclusive lock it is renamed to a partial's
+    name first (a run that opens it now finds it gone and extracts it again), then removed."""
+    entry = cache / name
+    if fcntl is None:
+        shutil.rmtree(entry, ignore_errors=True)
+        return
+    try:
+        fd = os.open(entry / LEASE, os.O_RDWR | os.O_CREAT, 0o600)
+    except OSError:                      # gone meanwhile, or not a folder
+        return
+    doomed = cache / f".{name}.pruned.{uuid.uuid4().hex}"
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        os.replace(entry, doomed)
+    except OSError:                      # in use (BlockingIOError), or gone meanwhile
+        return
+    finally:
+        os.close(fd)
+    shutil.rmtree(doomed, ignore_errors=True)

@@ -43,6 +43,7 @@ class Instance:
         self.input_sources: np.ndarray = np.zeros(0, dtype=int)
         self.stepped_before: np.ndarray = np.zeros(0, dtype=bool)
         self.instantiated = False
+        self.lease = None                #: the extracted folder's :class:`~fmus.master.cache.Lease`, released at close
 
     # ------------------------------------------------------------------ names
     def variable(self, name: str):
@@ -128,11 +129,15 @@ class Instance:
 
     def close(self) -> None:
         """Free the instance and unload the library (once), or only unload it if never instantiated."""
-        if self.instantiated:
-            self.instantiated = False
-            self._free_instance()
-        else:
-            self._free_library()
+        try:
+            if self.instantiated:
+                self.instantiated = False
+                self._free_instance()
+            else:
+                self._free_library()
+        finally:
+            if self.lease is not None:
+                self.lease.release()
 
     def _free_instance(self) -> None:
         raise NotImplementedError

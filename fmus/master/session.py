@@ -17,7 +17,7 @@ import numpy as np
 from fmpy import read_model_description
 
 from .adaptive import adaptive
-from .cache import extracted
+from .cache import leased
 from .errors import SimulationError, call, check, closest
 from .fmi2 import Fmi2Instance
 from .fmi3 import Fmi3Instance
@@ -41,12 +41,18 @@ def open_instance(component: Component, logger: Logger) -> Instance:
     fmu = Path(component.fmu)
     if not fmu.is_file():
         raise SimulationError(f"{component.name}: FMU file {fmu} does not exist (run 'obsfmu build')")
-    folder = extracted(fmu)              # first: the archive is checked before anything of it is read
-    description = read_model_description(str(folder))
-    if description.coSimulation is None:
-        raise SimulationError(f"{component.name}: {fmu} is not a co-simulation FMU")
-    implementation = Fmi3Instance if description.fmiVersion.startswith("3") else Fmi2Instance
-    return implementation(component.name, description, folder, logger)
+    folder, lease = leased(fmu)          # first: the archive is checked before anything of it is read
+    try:
+        description = read_model_description(str(folder))
+        if description.coSimulation is None:
+            raise SimulationError(f"{component.name}: {fmu} is not a co-simulation FMU")
+        implementation = Fmi3Instance if description.fmiVersion.startswith("3") else Fmi2Instance
+        instance = implementation(component.name, description, folder, logger)
+    except BaseException:
+        lease.release()
+        raise
+    instance.lease = lease               # fmi2Reset reads the folder again: held until the instance closes
+    return instance
 
 
 def check_run_settings(stop_time, step, order, start_time, coupling, tolerance) -> None:

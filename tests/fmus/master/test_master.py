@@ -107,3 +107,44 @@ def test_closing_a_session_leaves_another_of_the_same_fmus_running(build_dir, fm
             second.run(0.005, 1e-3)
         again = first.run(0.005, 1e-3)
     np.testing.assert_array_equal(again.values, alone.values)
+
+
+_OTHER_RUN_PRUNES = """
+import sys
+from pathlib import Path
+from fmus.master import cache
+root = Path(sys.argv[1])
+for n in range(cache.EXTRACT_CACHE_SIZE + 1):
+    (root / f"newer-{n}").mkdir()
+cache._prune(root, keep=root / "newer-0")
+"""
+
+
+def test_a_session_keeps_its_extracted_fmus_while_other_runs_prune_the_cache(ship_fmus, tmp_path, monkeypatch):
+    """Sweeps met ``plant: reset failed ...; FMU says: fmi2Reset: FileNotFoundError: ... resources/<model>.json``:
+    fmi2Reset creates the slave again from the extracted folder, and other runs on the machine (a test suite
+    extracts hundreds of FMUs) pruned the least recently used entries -- the folders of a session open for
+    minutes.  An open session's folders stay, in this process and in another; closed, they may go."""
+    import subprocess
+    import sys
+
+    from fmus.master import Session, cache
+
+    folder = tmp_path / "extracted"
+    monkeypatch.setattr(cache, "EXTRACT_CACHE", folder)
+    with Session(ship_system(ship_fmus), echo_log=False) as session:
+        first = session.run(0.005, 1e-3)
+        used = sorted(entry.name for entry in folder.iterdir() if not entry.name.startswith("."))
+        assert len(used) == len(SCENARIO.components), used
+        for n in range(cache.EXTRACT_CACHE_SIZE + 1):               # newer entries of other FMUs
+            (folder / f"other-{n}").mkdir()
+        cache._prune(folder, keep=folder / "other-0")
+        again = session.run(0.005, 1e-3)                            # fmi2Reset: the slaves read resources/ again
+        assert all((folder / name / "modelDescription.xml").is_file() for name in used)
+        np.testing.assert_array_equal(again.values, first.values)
+        subprocess.run([sys.executable, "-c", _OTHER_RUN_PRUNES, str(folder)], check=True, timeout=120)
+        assert all((folder / name / "modelDescription.xml").is_file() for name in used)
+        np.testing.assert_array_equal(session.run(0.005, 1e-3).values, first.values)
+    cache._prune(folder, keep=folder / "newer-0")
+    assert not any((folder / name).exists() for name in used), "closed, its entries are the oldest: pruned"
+    assert not [entry.name for entry in folder.iterdir() if ".pruned." in entry.name]
