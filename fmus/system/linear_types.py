@@ -120,32 +120,34 @@ def matrix_text(matrix) -> str:
     return "[" + "; ".join(", ".join(f"{v:.6g}" for v in row) for row in rows) + "]"
 
 
-def _checked_gain(section: str, table: dict, model, gain: str, shape, designer, closed_loop, loop_text: str):
+def _checked_gain(context: Context, table: dict, model, gain: str, shape, designer, closed_loop, loop_text: str):
     """The gain of ``table`` (designed or given) with the poles of its closed loop: Hurwitz always, and a
-    bounded transient for designed poles (:func:`fmus.config.require_bounded_transient`)."""
+    bounded transient for designed poles (:func:`fmus.config.require_bounded_transient`).  The gain and
+    poles go into the build's notes, the poles' largest magnitude into the rates the step is checked against."""
+    section = context.prefix.rstrip(".")
     G, poles = design_gain(section, table, model, gain, shape, designer)
     loop = closed_loop(G)
     require_hurwitz(f"{section}.{gain} ({loop_text})", loop)
     if poles is not None:
         require_bounded_transient(f"{section}.poles", loop)
-    return G, np.linalg.eigvals(loop) if poles is None else poles
+    poles = np.linalg.eigvals(loop) if poles is None else poles
+    context.notes.append(f"{section}: {gain} = {matrix_text(G)}; eig({loop_text}) = [{poles_text(poles)}]")
+    context.rate(poles, f"eig({loop_text})")
+    return G, poles
 
 
 def _define_observer(model_name: str, values: dict, context: Context) -> list:
     model, units = _plant(values, context, "luenberger observer")
-    section = context.prefix.rstrip(".")
     if not is_observable(model.A, model.C):
         raise ParameterError(f"{context.prefix}plant: the pair (A, C) of {values['plant']!r} is not observable; "
                              "no observer can reconstruct the state")
     table = _table(values, ("poles", "t_settle", "shift", "form", "N"))
-    N, poles = _checked_gain(section, table, model, "N", (model.n, model.p),
+    N, poles = _checked_gain(context, table, model, "N", (model.n, model.p),
                              lambda p, name: observer_gain(model.A, model.C, p, name),
                              lambda N: model.A - N @ model.C, "A - N C")
     x_hat0 = np.zeros(model.n) if values["x_hat0"] is None else values["x_hat0"]
     if np.size(x_hat0) != model.n:
         raise ParameterError(f"{context.prefix}x_hat0: expected {model.n} entries, got {np.size(x_hat0)}")
-    context.notes.append(f"{section}: N = {matrix_text(N)}; eig(A - N C) = [{poles_text(poles)}]")
-    context.rate(poles, "eig(A - N C)")
     return [observer_definition(model_name, model, N, x_hat0, units, values["description"], poles)]
 
 
@@ -158,18 +160,15 @@ register("luenberger", "Luenberger observer of an lti component: `x_hat' = A x_h
 
 def _define_feedback(model_name: str, values: dict, context: Context) -> list:
     model, units = _plant(values, context, "state feedback")
-    section = context.prefix.rstrip(".")
     if model.m == 0:
         raise ParameterError(f"{context.prefix}plant: {values['plant']!r} has no input (B absent)")
     if not is_controllable(model.A, model.B):
         raise ParameterError(f"{context.prefix}plant: the pair (A, B) of {values['plant']!r} is not controllable; "
                              "state feedback cannot place the poles")
     table = _table(values, ("poles", "t_settle", "shift", "form", "K"))
-    K, poles = _checked_gain(section, table, model, "K", (model.m, model.n),
+    K, poles = _checked_gain(context, table, model, "K", (model.m, model.n),
                              lambda p, name: place(model.A, model.B, p, name),
                              lambda K: model.A - model.B @ K, "A - B K")
-    context.notes.append(f"{section}: K = {matrix_text(K)}; eig(A - B K) = [{poles_text(poles)}]")
-    context.rate(poles, "eig(A - B K)")
     return [feedback_definition(model_name, K, units, values["description"])]
 
 
