@@ -1,8 +1,10 @@
 r"""Nonlinear LTV plant of paper 001: ``x' = A(t) x + k C^T x + b u + m f(y)``, ``y = C^T x``.
 
-``A(t)``, ``C`` and ``f`` are known to the observer; ``k``, ``b``, ``m`` and ``x(0)`` are the
-unknowns it estimates.  The true state ``x`` and the true parameter vector of the
-regression (7), ``Theta = [-x(0); k; b; m]``, are outputs so that estimation errors can be
+``A(t)``, ``C`` (or ``C(t)``) and ``f`` are known to the observer; ``k``, ``b``, ``m`` and ``x(0)`` are
+the unknowns it estimates.  ``f`` may return ``p`` values, the nonlinearities of
+``sum_i m_i f_i(y, t)``, with ``m = [m_1, ..., m_p]`` an ``n x p`` matrix (:mod:`observers.ltv.model`).
+The true state ``x`` and the true parameter vector of the
+regression (7), ``Theta = [-x(0); k; b; m_1; ...; m_p]``, are outputs so that estimation errors can be
 computed.  An optional measurement noise ``v`` (sample-and-hold Gaussian,
 :class:`~plants.signals.SampledNoise`) is added to the measured output only:
 ``y = C^T x + v``; the plant itself evolves with the noise-free ``C^T x``.
@@ -29,9 +31,10 @@ from typing import Mapping
 import numpy as np
 
 from observers.block import Block, Segment
-from observers.checks import ParameterError, SignalError, as_vector, require_positive
+from observers.checks import SignalError, as_vector, require_positive
 from observers.integrators import DEFAULT_SUBSTEP_BUDGET, require_budget, rk4_step, substep_count
-from observers.ltv.stepping import PolynomialInputs, output_function, time_function
+from observers.ltv.model import Nonlinearities, OutputVector, gain_matrix
+from observers.ltv.stepping import PolynomialInputs, time_function
 
 from .signals import SampledNoise
 
@@ -64,12 +67,14 @@ class OutputNonlinearLTVPlant(Block):
     ----------
     A : callable
         ``A(t) -> (n, n)`` array.
-    C : array_like, shape (n,)
-        Output vector.
+    C : array_like, shape (n,), or callable
+        Output vector, or ``C(t) -> (n,)`` array.
     f : callable
-        ``f(y) -> float`` (``f_time``: ``f(t, y) -> float``).
-    k, b, m, x0 : array_like, shape (n,)
-        Output injection ``k C^T x``, input vector, nonlinearity gain, initial state.
+        ``f(y) -> float`` (``f_time``: ``f(t, y) -> float``), or returning ``p`` values.
+    k, b, x0 : array_like, shape (n,)
+        Output injection ``k C^T x``, input vector, initial state.
+    m : array_like, shape (n,) or (n, p)
+        The nonlinearities' gains ``[m_1, ..., m_p]``.
     noise : SampledNoise, optional
         Measurement noise added to the output ``y``.
     max_substep : float
@@ -86,25 +91,24 @@ class OutputNonlinearLTVPlant(Block):
     Notes
     -----
     Ports: input ``u`` (scalar); outputs ``y`` (measured, scalar), ``x`` (n) and ``theta``
-    (4 n, the true ``Theta = [-x(0); k; b; m]``).
+    (``(3 + p) n``, the true ``Theta = [-x(0); k; b; m_1; ...; m_p]``).
     """
 
-    not_state = ("A", "f", "f_time", "C", "k", "b", "m", "theta", "_kbm", "noise", "max_substep", "max_dy",
+    not_state = ("A", "f", "f_time", "nonlinearities", "C", "k", "b", "m", "theta", "_kbm", "noise", "max_substep", "max_dy",
                  "substep_budget")
 
     def __init__(self, A: Callable, C, f: Callable, k, b, m, x0, noise: SampledNoise | None = None,
                  max_substep: float = 1e-3, max_dy: float = 0.2, input_degree: int = 2,
                  substep_budget: int = DEFAULT_SUBSTEP_BUDGET, f_time: bool = False):
-        self.C = as_vector("C", C)
-        if not np.any(self.C):
-            raise ParameterError("C: the output vector is zero; y = C^T x would measure nothing")
-        n = self.C.size
+        self.C = OutputVector(C)
+        n = self.C.n
         self.A = time_function("A", A, (n, n))
         self.f_time = bool(f_time)
-        self.f = output_function("f", f, self.f_time)
-        self.k, self.b, self.m, x0 = (as_vector(name, value, n)
-                                      for name, value in (("k", k), ("b", b), ("m", m), ("x0", x0)))
-        self.theta = np.concatenate([-x0, self.k, self.b, self.m])
+        self.f = f
+        self.nonlinearities = Nonlinearities(f, self.f_time)
+        self.k, self.b, x0 = (as_vector(name, value, n) for name, value in (("k", k), ("b", b), ("x0", x0)))
+        self.m = gain_matrix("m", m, n, self.nonlinearities.count)
+        self.theta = np.concatenate([-x0, self.k, self.b, self.m.T.ravel()])
         self._kbm = np.column_stack([self.k, self.b, self.m])
         self.x = x0.copy()
         self.noise = noise
@@ -113,16 +117,17 @@ class OutputNonlinearLTVPlant(Block):
         self.substep_budget = require_budget(substep_budget)
         self.inputs = PolynomialInputs(input_degree)
         self.input_sizes = {"u": 1}
-        self.output_sizes = {"y": 1, "x": n, "theta": 4 * n}
+        self.output_sizes = {"y": 1, "x": n, "theta": self.theta.size}
 
     def rate(self, t: float, x: np.ndarray, u: float, A: np.ndarray | None = None) -> np.ndarray:
-        """Right-hand side of (1): ``A(t) x + k y + b u + m f(y)``, ``y = C^T x`` (``A``: ``A(t)`` if known)."""
-        y = float(self.C @ x)
+        """Right-hand side of (1): ``A(t) x + k y + b u + sum_i m_i f_i(y, t)``, ``y = C^T(t) x`` (``A``: ``A(t)``
+        if known)."""
+        y = float(self.C.at(t) @ x)
         A = np.asarray(self.A(t), dtype=float) if A is None else A
-        return A @ x + self._kbm @ np.array((y, u, float(self.f(t, y) if self.f_time else self.f(y))))
+        return A @ x + self._kbm @ np.array((y, u, *self.nonlinearities.values(t, y)))
 
     def outputs(self, t: float, inputs: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
-        y = np.array([self.C @ self.x])
+        y = np.array([self.C.at(t) @ self.x])
         if self.noise is not None and self.noise.std:
             y = y + self.noise(t)
         return {"y": y, "x": self.x.copy(), "theta": self.theta.copy()}
@@ -137,7 +142,7 @@ class OutputNonlinearLTVPlant(Block):
                 matrices[s] = np.asarray(self.A(s), dtype=float)
             return matrices[s]
 
-        dy = self.C @ self.rate(t, self.x, u.start, A(t))
+        dy = self.C.at(t) @ self.rate(t, self.x, u.start, A(t))
         count = substep_count(h, self.max_substep, dy, self.max_dy, self.substep_budget)
         x = rk4_step(lambda s, x: self.rate(s, x, u.at(s - t), A(s)), t, self.x, h, count)
         if not np.all(np.isfinite(x)):

@@ -1,12 +1,13 @@
 """Component types ``ltv-plant`` and ``ltv-adaptive-observer`` of a system file (paper 001).
 
-The plant class of paper 001, ``x' = A(t) x + k C^T x + b u + m f(y, t)``, ``y = C^T x``: ``A(t)`` and
-``L(t)`` are expressions of ``t``, ``f`` an expression of ``y`` and ``t`` (one nonlinearity), ``C`` a
-constant vector (the observer does not support the paper's ``C(t)``: a text in ``C`` is refused saying so).  Every assumption that
-can be checked numerically is checked before anything is built (:mod:`observers.ltv.assumptions`):
-the dimensions; ``(A0(t), C^T)`` observable and ``A0(t) = A(t) - L(t) C^T`` stable at 200 points of
-``[0, stop_time]`` -- exactly if ``A0`` is constant, else frozen-time eigenvalues, which are only a
-necessary condition; the unknowns among ``k``, ``b``, ``m`` and the known values of the others.
+The plant class of paper 001, ``x' = A(t) x + k C^T(t) x + b u + sum_i m_i f_i(y, t)``, ``y = C^T(t) x``:
+``A(t)``, ``L(t)`` and ``C(t)`` are expressions of ``t`` (``C`` numbers when it is constant), ``f`` one
+expression of ``y`` and ``t`` or a list of ``p`` of them, with ``m`` then the ``n x p`` matrix
+``[m_1, ..., m_p]``.  Every assumption that can be checked numerically is checked before anything is
+built (:mod:`observers.ltv.assumptions`): the dimensions; ``(A0(t), C^T(t))`` observable and
+``A0(t) = A(t) - L(t) C^T(t)`` stable at 200 points of ``[0, stop_time]`` -- exactly if ``A0`` and ``C``
+are constant, else frozen-time tests, which are only a necessary condition; the unknowns among ``k``,
+``b``, ``m`` and the known values of the others.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import numpy as np
 from observers.checks import ParameterError
 from observers.ltv.assumptions import require_assumptions
 from observers.ltv.estimators import ESTIMATORS
+from observers.ltv.model import gain_matrix
 from observers.ltv.observer import PARTS
 
 from ..runtime.callables import resolve
@@ -31,10 +33,10 @@ _DEFAULT_HORIZON = 10.0    #: the grid's end when the experiment gives no stop t
 _MODEL = (
     Field("A", "expression-matrix", "A(t): n x n expressions of the time t (or numbers)", unit="1/s",
           example='[["2 - sin(t)", 1], ["-8 + cos(t)", 0]]'),
-    Field("C", "expression-vector", "output vector, y = C^T x (n numbers; the paper's C(t) is not supported)",
-          example="[1, 0]"),
-    Field("f", "expression", "the known nonlinearity f(y, t) of m f(y, t) (an expression of y and t)", "0",
-          example='"sin(y)"'),
+    Field("C", "expression-vector", "output vector, y = C^T x: n numbers, or n expressions of t for a "
+          "time-varying C(t)", example='[1, 0] or ["1", "0.5 sin(t)"]'),
+    Field("f", "expression-or-vector", "the known nonlinearity f(y, t) of m f(y, t) (an expression of y and t), or a "
+          "list of p of them: w = sum_i m_i f_i(y, t)", "0", example='"sin(y)" or ["sin(y)", "y^3"]'),
     Field("constants", "table", "named constants the expressions may use", None, example="{ w = 2.0 }"),
 )
 _STEPPING = (
@@ -45,48 +47,56 @@ _STEPPING = (
 )
 
 
-def _vector(values: dict, name: str, n: int, prefix: str, default=None):
+def _vector(values: dict, name: str, n: int, prefix: str, default=None, p: int = 1):
+    """The field ``name``: a vector of ``n`` (``m``, ``m_hat0``: the ``n x p`` gains), or ``default`` if absent."""
     value = values[name]
     if value is None:
         return default
-    if np.size(value) != n:
-        raise ParameterError(f"{prefix}{name}: expected {n} entries (n = the entries of C), got {np.size(value)}")
+    if name.startswith("m") and (p > 1 or np.ndim(value) == 2):
+        return gain_matrix(prefix + name, value, n, p).tolist()
+    if np.ndim(value) != 1 or np.size(value) != n:
+        raise ParameterError(f"{prefix}{name}: expected {n} entries (n = the entries of C), got shape {np.shape(value)}")
     return list(map(float, value))
 
 
-def _output_vector(values: dict, prefix: str) -> list[float]:
-    """``C``: numbers only (a text would be ``C(t)``, which the observer does not support)."""
+def _output_vector(values: dict, prefix: str):
+    """``C``: n numbers (constant), or the expression function ``C(t)`` if an entry is a text."""
     C = values["C"]
-    texts = [entry for entry in C if isinstance(entry, str)]
-    if texts:
-        raise ParameterError(f"{prefix}C: {texts[0]!r} is an expression; a time-varying C(t) (paper 001 allows it) is "
-                             "not supported by this observer: give n numbers")
+    if any(isinstance(entry, str) for entry in C):
+        return expression_function(C, (("t", 0),), (len(C),), constants=values["constants"] or {}, field=prefix + "C")
     if not any(C):
         raise ParameterError(f"{prefix}C: the output vector is zero; y = C^T x would measure nothing")
     return [float(v) for v in C]
 
 
 def _functions(values: dict, n: int, prefix: str, names=("A", "f")) -> dict:
-    """The expression functions of ``names`` (A(t): n x n, L(t): n, f(y, t): scalar), each checked as it compiles.
+    """The expression functions of ``names`` (A(t): n x n, L(t): n, f(y, t): one value or p), each checked as it
+    compiles.
 
-    ``f`` is a function of ``(t, y)`` only if its text reads ``t`` (else of ``y``: the kinds then call it
+    ``f`` is a function of ``(t, y)`` only if a text reads ``t`` (else of ``y``: the kinds then call it
     ``f(y)``, and ``f_correction`` applies)."""
     constants = values["constants"] or {}
-    shapes = {"A": ((("t", 0),), (n, n)), "L": ((("t", 0),), (n,)), "f": ((("t", 0), ("y", 0)), ())}
+    f_shape = (len(values["f"]),) if isinstance(values["f"], list) else ()
+    shapes = {"A": ((("t", 0),), (n, n)), "L": ((("t", 0),), (n,)), "f": ((("t", 0), ("y", 0)), f_shape)}
     found = {name: expression_function(values[name], shapes[name][0], shapes[name][1], constants=constants,
                                        field=prefix + name) for name in names}
     if "t" not in compiled(found["f"]).vector.uses:
-        found["f"] = expression_function(values["f"], (("y", 0),), (), constants=constants, field=prefix + "f")
+        found["f"] = expression_function(values["f"], (("y", 0),), f_shape, constants=constants, field=prefix + "f")
     return found
+
+
+def _count(values: dict) -> int:
+    """``p``: the number of nonlinearities in ``f``."""
+    return len(values["f"]) if isinstance(values["f"], list) else 1
 
 
 def _define_plant(model_name: str, values: dict, context: Context) -> list:
     prefix = context.prefix
     C = _output_vector(values, prefix)
-    n = len(C)
+    n, p = len(values["C"]), _count(values)
     functions = _functions(values, n, prefix)
-    zeros = [0.0] * n
-    parts = {name: _vector(values, name, n, prefix, zeros) for name in (*PARTS, "x0")}
+    zeros = {name: [0.0] * n if name != "m" or p == 1 else np.zeros((n, p)).tolist() for name in (*PARTS, "x0")}
+    parts = {name: _vector(values, name, n, prefix, zeros[name], p) for name in (*PARTS, "x0")}
     return [ltv_plant_definition(model_name, functions["A"], C, functions["f"], **parts,
                                  noise_std=values["noise_std"], noise_dt=values["noise_dt"],
                                  noise_seed=values["noise_seed"], max_substep=values["max_substep"],
@@ -94,12 +104,14 @@ def _define_plant(model_name: str, values: dict, context: Context) -> list:
                                  description=values["description"])]
 
 
-register("ltv-plant", "Plant of paper 001: `x' = A(t) x + k C^T x + b u + m f(y)`, `y = C^T x + v` (v: measurement "
-         "noise, held over `noise_dt`). Input `u`; outputs `y`, the true state `x` and the true `theta = [-x(0); k; "
-         "b; m]` (to compare with an observer's `theta_hat` when all of k, b, m are unknown).", _MODEL + (
+register("ltv-plant", "Plant of paper 001: `x' = A(t) x + k C^T(t) x + b u + sum_i m_i f_i(y, t)`, `y = C^T(t) x + v` "
+         "(v: measurement noise, held over `noise_dt`). Input `u`; outputs `y`, the true state `x` and the true "
+         "`theta = [-x(0); k; b; m_1; ...; m_p]` (to compare with an observer's `theta_hat` when all of k, b, m are "
+         "unknown).", _MODEL + (
              Field("k", "vector", "the output injection k of k C^T x (absent: zero)", None, example="[-1, 3]"),
              Field("b", "vector", "the input vector b of b u (absent: zero)", None, example="[1, 2]"),
-             Field("m", "vector", "the gain m of m f(y) (absent: zero)", None, example="[-4, 4]"),
+             Field("m", "vector-or-matrix", "the gain m of m f(y) (absent: zero); with p nonlinearities the n x p "
+                   "matrix [m_1, ..., m_p] (row i: state i)", None, example="[-4, 4] or [[-4, 1], [4, 0]]"),
              Field("x0", "vector", "initial state x(0) (absent: zero)", None, example="[-3, -2]"),
              Field("noise_std", "number", "standard deviation of the Gaussian measurement noise v on y (0: none)",
                    0.0, "(y)", "0.01"),
@@ -118,7 +130,7 @@ def _unknowns(values: dict, prefix: str) -> tuple[str, ...]:
     return tuple(name for name in PARTS if name in names)
 
 
-def _known(values: dict, unknowns, n: int, prefix: str) -> dict:
+def _known(values: dict, unknowns, n: int, prefix: str, p: int) -> dict:
     """The values of the known parts; a value for an unknown part, or a known part without one, refused."""
     known = {}
     for name in PARTS:
@@ -130,7 +142,7 @@ def _known(values: dict, unknowns, n: int, prefix: str) -> dict:
             if not given:
                 raise ParameterError(f"{prefix}{name}: {name} is known (not in unknowns); its value is required (zeros "
                                      "if the plant has none)")
-            known[name] = _vector(values, name, n, prefix)
+            known[name] = _vector(values, name, n, prefix, p=p)
         if name not in unknowns and values[f"{name}_hat0"] is not None:
             raise ParameterError(f"{prefix}{name}_hat0: {name} is known (not in unknowns); it has no estimate")
     return known
@@ -143,15 +155,16 @@ def _grid(context: Context) -> np.ndarray:
 def _define_observer(model_name: str, values: dict, context: Context) -> list:
     prefix = context.prefix
     C = _output_vector(values, prefix)
-    n = len(C)
+    n, p = len(values["C"]), _count(values)
     functions = _functions(values, n, prefix, ("A", "L", "f"))
     unknowns = _unknowns(values, prefix)
-    known = _known(values, unknowns, n, prefix)
-    test = require_assumptions(resolve(functions["A"]), resolve(functions["L"]), np.array(C), _grid(context))
+    known = _known(values, unknowns, n, prefix, p)
+    test = require_assumptions(resolve(functions["A"]), resolve(functions["L"]),
+                               resolve(C) if isinstance(C, dict) else np.array(C), _grid(context))
     context.notes.append(f"{prefix.rstrip('.')}: A0(t) = A(t) - L(t) C^T "
                          + ("constant, uniformly stable" if test == "constant" else
                             f"stable at {GRID_POINTS} frozen times of [0, {_grid(context)[-1]:g}] (necessary only)"))
-    starts = {f"{name}_hat0": _vector(values, f"{name}_hat0", n, prefix) for name in ("x", *unknowns)}
+    starts = {f"{name}_hat0": _vector(values, f"{name}_hat0", n, prefix, p=p) for name in ("x", *unknowns)}
     return [ltv_observer_definition(
         model_name, functions["A"], C, functions["L"], functions["f"], gamma=values["gamma"], beta=values["beta"],
         f0=values["f0"], M=values["M"], **starts, max_substep=values["max_substep"], max_dy=values["max_dy"],
@@ -161,10 +174,10 @@ def _define_observer(model_name: str, values: dict, context: Context) -> list:
         estimator=values["estimator"], extension_rate=values["extension_rate"], description=values["description"])]
 
 
-register("ltv-adaptive-observer", "Adaptive observer of paper 001 for a plant `x' = A(t) x + k C^T x + b u + m f(y)`, "
-         "`y = C^T x`: filters (2)-(6), regression (7) in `Theta = [-x(0); the unknowns]`, an estimator, the state "
-         "(10). Needs `L(t)` with `A0(t) = A(t) - L(t) C^T` uniformly stable (Assumptions 3-4) and `(A0, C^T)` "
-         "observable. Inputs `u`, `y`; outputs `x_hat`, `theta_hat`, `k_hat`, `b_hat`, `m_hat`, `x0_hat`, "
+register("ltv-adaptive-observer", "Adaptive observer of paper 001 for a plant `x' = A(t) x + k C^T(t) x + b u + "
+         "sum_i m_i f_i(y, t)`, `y = C^T(t) x`: filters (2)-(6) (one rho_i per f_i), regression (7) in `Theta = "
+         "[-x(0); the unknowns]` (m: its columns m_1, ..., m_p), an estimator, the state (10). Needs `L(t)` with "
+         "`A0(t) = A(t) - L(t) C^T(t)` uniformly stable (Assumptions 3-4) and `(A0, C^T)` observable. Inputs `u`, `y`; outputs `x_hat`, `theta_hat`, `k_hat`, `b_hat`, `m_hat`, `x0_hat`, "
          "`F_max` (least squares), `excitation`, `converged`.", _MODEL + (
              Field("L", "expression-vector", "L(t): n expressions of t making A0(t) = A(t) - L(t) C^T uniformly "
                    "stable", unit="1/s", example='["2 - sin(t)", "1 + cos(t)"]'),
@@ -172,7 +185,8 @@ register("ltv-adaptive-observer", "Adaptive observer of paper 001 for a plant `x
                    "only", "k, b, m", example='"k"'),
              Field("k", "vector", "the known k (exactly when k is not in unknowns)", None, example="[-1, 3]"),
              Field("b", "vector", "the known b (exactly when b is not in unknowns)", None, example="[0, 1]"),
-             Field("m", "vector", "the known m (exactly when m is not in unknowns)", None, example="[0, -0.5]"),
+             Field("m", "vector-or-matrix", "the known m (exactly when m is not in unknowns; n x p with p "
+                   "nonlinearities)", None, example="[0, -0.5]"),
              Field("estimator", "choice", "the estimator of regression (7)", ESTIMATORS[0], choices=ESTIMATORS),
              Field("gamma", "number", "adaptation gain of the estimator", 1000.0, "", "100"),
              Field("beta", "number", "least squares: forgetting factor", 1.0, "1/s", "0.5"),
@@ -183,7 +197,8 @@ register("ltv-adaptive-observer", "Adaptive observer of paper 001 for a plant `x
              Field("x_hat0", "vector", "initial estimate of x(0) (absent: zero)", None, example="[0, 0]"),
              Field("k_hat0", "vector", "initial estimate of k (absent: zero)", None, example="[0, 0]"),
              Field("b_hat0", "vector", "initial estimate of b (absent: zero)", None, example="[0, 0]"),
-             Field("m_hat0", "vector", "initial estimate of m (absent: zero)", None, example="[0, 0]"),
+             Field("m_hat0", "vector-or-matrix", "initial estimate of m (absent: zero; n x p with p nonlinearities)",
+                   None, example="[0, 0]"),
              Field("f_correction", "boolean", "resolve inside a step the fast part of y that m f(y) drives (outputs "
                    "f(y) makes oscillate between samples; docs/paper001.md, section 2)", False, example="true"),
              Field("converged_tolerance", "number", "converged = 1 once the estimator's guaranteed bound on "

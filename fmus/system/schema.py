@@ -43,6 +43,8 @@ FIELD_TYPES = {
     "expression": "one expression (a text), or a number",
     "expression-vector": "a list of expressions (texts) or numbers, one per entry",
     "expression-matrix": "a list of rows, each a list of expressions (texts) or numbers, all rows of one length",
+    "expression-or-vector": "one expression (a text) or number, or a list of them (one per entry)",
+    "vector-or-matrix": "a list of finite numbers, or a list of rows (a matrix)",
     "table": "a table of name = number",
     "unit-table": "a table of name = unit (text)",
     "component": "the name of another component of the file",

@@ -149,6 +149,16 @@ def _expression_matrix(where: str, value) -> list:
             for i, row in enumerate(value, start=1)]
 
 
+def _expression_or_vector(where: str, value):
+    return _expression_vector(where, value) if isinstance(value, list) else _expression(where, value)
+
+
+def _vector_or_matrix(where: str, value) -> np.ndarray:
+    if isinstance(value, list) and value and isinstance(value[0], list):
+        return _matrix(where, value)
+    return _vector(where, value, MAX_ENTRIES)
+
+
 def _integer(where: str, value) -> int:
     if isinstance(value, bool) or not isinstance(value, int):
         raise ParameterError(f"{where}: expected a whole number, got {_shown(value)}")
@@ -184,6 +194,8 @@ _CHECKS = {
     "expression": _expression,
     "expression-vector": _expression_vector,
     "expression-matrix": _expression_matrix,
+    "expression-or-vector": _expression_or_vector,
+    "vector-or-matrix": _vector_or_matrix,
     "table": lambda where, value: _table(where, value, _number),
     "unit-table": lambda where, value: _table(where, value, lambda w, v: check_text(w, v, limit=100)),
 }

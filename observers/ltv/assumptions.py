@@ -1,6 +1,6 @@
-r"""The numerically checkable assumptions of paper 001 on ``A(t)``, ``L(t)``, ``C``.
+r"""The numerically checkable assumptions of paper 001 on ``A(t)``, ``L(t)``, ``C`` (or ``C(t)``).
 
-* Assumptions 3-4: ``A0(t) = A(t) - L(t) C^T`` uniformly stable.  For a constant ``A0`` (the same
+* Assumptions 3-4: ``A0(t) = A(t) - L(t) C^T(t)`` uniformly stable.  For a constant ``A0`` (the same
   matrix at every grid point, to round-off) this is decided exactly: every eigenvalue has a negative
   real part, or a zero one and is semisimple (no Jordan block: the paper's example
   ``A0 = [[0, 1], [-9, 0]]`` is marginally, yet uniformly, stable).  For a time-varying ``A0``
@@ -8,7 +8,8 @@ r"""The numerically checkable assumptions of paper 001 on ``A(t)``, ``L(t)``, ``
   they catch wrong signs and dimensions, they cannot prove uniform stability of an LTV system (the
   observer also refuses a step after which its transition matrix ``Phi`` has grown beyond
   :data:`~observers.ltv.observer.PHI_LIMIT`).
-* Regression (7) identifies ``x(0)`` only if ``(A0, C^T)`` is observable: checked at every grid point.
+* Regression (7) identifies ``x(0)`` only if ``(A0, C^T)`` is observable: checked at every grid point
+  (for ``C(t)`` the frozen-time pair ``(A0(t), C^T(t))``: a necessary check, as for ``A0``).
 """
 
 from __future__ import annotations
@@ -25,6 +26,8 @@ DEFAULT_TIMES = np.linspace(0.0, 10.0, 21)
 
 def _A0(A, L, C: np.ndarray, t: float) -> np.ndarray:
     A0 = np.asarray(A(t), dtype=float) - np.outer(np.asarray(L(t), dtype=float), C)
+    if not np.all(np.isfinite(C)):
+        raise ParameterError(f"C: C(t) is not finite at t = {t:g}")
     if not np.all(np.isfinite(A0)):
         raise ParameterError(f"L: A0(t) = A(t) - L(t) C^T is not finite at t = {t:g}")
     return A0
@@ -60,8 +63,10 @@ def _require_stable_constant(A0: np.ndarray, tolerance: float) -> None:
                                  "stable (paper 001, Assumptions 3-4)")
 
 
-def require_assumptions(A, L, C: np.ndarray, times=DEFAULT_TIMES, tolerance: float = 1e-9) -> str:
+def require_assumptions(A, L, C, times=DEFAULT_TIMES, tolerance: float = 1e-9) -> str:
     """Refuse ``L`` or ``C`` against the assumptions above on the grid ``times``; say which test applied.
+
+    ``C`` is the output vector, or a function of time returning it (``C(t)``).
 
     Returns
     -------
@@ -73,9 +78,10 @@ def require_assumptions(A, L, C: np.ndarray, times=DEFAULT_TIMES, tolerance: flo
     ParameterError
         Naming ``L`` (an unstable or non-finite ``A0``) or ``C`` (not observable), and the assumption.
     """
-    matrices = [_A0(A, L, C, float(t)) for t in times]
-    for t, A0 in zip(times, matrices):
-        _require_observable(A0, C, float(t))
+    outputs = [np.asarray(C(float(t)) if callable(C) else C, dtype=float) for t in times]
+    matrices = [_A0(A, L, C_t, float(t)) for t, C_t in zip(times, outputs)]
+    for t, A0, C_t in zip(times, matrices, outputs):
+        _require_observable(A0, C_t, float(t))
     first = matrices[0]
     if all(np.abs(A0 - first).max() <= 1e-12 * max(1.0, np.abs(first).max()) for A0 in matrices):
         _require_stable_constant(first, tolerance)

@@ -1,7 +1,7 @@
 r"""Stepping helpers shared by the LTV plant and observer of paper 001.
 
-* :func:`time_function`, :func:`output_function` -- check the user's ``A(t)``, ``L(t)``,
-  ``f(y)`` once, naming the parameter.
+* :func:`time_function` -- check the user's ``A(t)``, ``L(t)``, ``C(t)`` once, naming the parameter
+  (``f`` and ``C``: :mod:`observers.ltv.model`).
 * :class:`PolynomialInputs` -- the inputs inside a communication step as the polynomial through
   the last ``degree + 1`` communication points (order ``degree + 1``) instead of the chord.
 * :func:`rk4_linear` -- RK4 for ``S' = A0(t) S + G(t)`` with values inside the step (dense output).
@@ -40,7 +40,7 @@ import numpy as np
 from ..block import MAGNITUDE_BOUND
 from ..checks import ParameterError, SignalError
 
-__all__ = ["time_function", "output_function", "InputPolynomial", "PolynomialInputs", "rk4_linear",
+__all__ = ["time_function", "InputPolynomial", "PolynomialInputs", "rk4_linear",
            "IntegralSamples", "resolved_output", "substep_points", "SUBSTEP_POINTS"]
 
 
@@ -56,20 +56,6 @@ def time_function(name: str, function: Callable, shape: tuple[int, ...]) -> Call
         raise ParameterError(f"{name}: {name}(t) must return shape {shape}, got {value.shape} at t = 0")
     if not np.all(np.isfinite(value)):
         raise ParameterError(f"{name}: {name}(0) is not finite: {value.tolist()}")
-    return function
-
-
-def output_function(name: str, function: Callable, timed: bool = False) -> Callable:
-    """Check that ``function(y)`` (``timed``: ``function(t, y)``, at ``t = 0``) maps a float to one finite
-    float; return it."""
-    if not callable(function):
-        raise ParameterError(f"{name}: expected a function of y, got {function!r}")
-    try:
-        values = [float(function(0.0, y) if timed else function(y)) for y in (0.0, 1.0)]
-    except Exception as exc:
-        raise ParameterError(f"{name}: {name}(y) must return one number: {type(exc).__name__}: {exc}") from None
-    if not all(math.isfinite(v) for v in values):
-        raise ParameterError(f"{name}: {name}(0) or {name}(1) is not finite: {values}")
     return function
 
 

@@ -1,6 +1,7 @@
 """Kinds for paper 001: the nonlinear LTV plant and its adaptive observer (LS, DREM or gradient).
 
-The user's model functions ``A(t)``, ``L(t)``, ``f(y)`` are ``"module:function"`` references or
+The user's model functions ``A(t)``, ``L(t)``, ``f(y)`` (one value or ``p``), and ``C(t)`` when the output
+vector varies, are ``"module:function"`` references or
 expression functions (:mod:`fmus.runtime.functions`) in the definition's ``options`` (resolved here
 with :func:`fmus.runtime.callables.resolve`, never evaluated); everything numeric is an FMU
 parameter.  The estimator is the option ``estimator`` (default least squares, the paper's).  The
@@ -17,6 +18,7 @@ from observers.checks import ParameterError
 from observers.integrators import DEFAULT_SUBSTEP_BUDGET
 from observers.ltv import LTVAdaptiveObserver
 from observers.ltv.estimators import ESTIMATORS, require_exact
+from observers.ltv.model import Nonlinearities, OutputVector
 from observers.ltv.observer import PARTS
 from plants.ltv import OutputNonlinearLTVPlant
 from plants.signals import SampledNoise
@@ -59,7 +61,7 @@ def _function(options: dict, key: str) -> Callable:
 @register(PLANT_KIND)
 def _plant(p, options):
     noise = SampledNoise(float(p["noise_std"]), float(p["noise_dt"]), float(p["noise_seed"]))   # checks all three
-    return OutputNonlinearLTVPlant(_function(options, "A"), p["C"], _function(options, "f"), p["k"], p["b"],
+    return OutputNonlinearLTVPlant(_function(options, "A"), _output(p, options), _function(options, "f"), p["k"], p["b"],
                                    p["m"], p["x0"], noise, float(p["max_substep"]), float(p["max_dy"]),
                                    _degree(p), _budget(p), f_time=_timed(options, "f"))
 
@@ -72,13 +74,34 @@ def _observer(p, options):
     contract = dict(zip(("converged_tolerance", "theta_bound", "regression_error_bound"),
                         contract_values(p, CONTRACTS[estimator])))
     least_squares = {name: float(p[name]) for name in ("beta", "f0", "M") if name in p}
-    return LTVAdaptiveObserver(_function(options, "A"), p["C"], _function(options, "L"), _function(options, "f"),
+    return LTVAdaptiveObserver(_function(options, "A"), _output(p, options), _function(options, "L"),
+                               _function(options, "f"),
                                float(p["gamma"]), x_hat0=p["x_hat0"], k_hat0=p.get("k_hat0"),
                                b_hat0=p.get("b_hat0"), m_hat0=p.get("m_hat0"), max_substep=float(p["max_substep"]),
                                max_dy=float(p["max_dy"]), input_degree=_degree(p), substep_budget=_budget(p),
                                f_correction=_flag(p, "f_correction"), unknowns=unknowns, estimator=estimator,
                                extension_rate=float(p.get("extension_rate", 1.0)), f_time=_timed(options, "f"),
                                **least_squares, **contract, **known)
+
+
+def _output(p, options: dict):
+    """``C``: the parameter, or the function ``C(t)`` of the option ``C`` (then there is no parameter)."""
+    return _function(options, "C") if "C" in options else p["C"]
+
+
+def _sizes(C, f_option) -> tuple[int, int]:
+    """``(n, p)``: the state's size (from ``C`` or ``C(t)``) and the number of nonlinearities ``f`` returns."""
+    if isinstance(C, (str, dict)):
+        C = resolve(C, "C")
+    return OutputVector(C).n, Nonlinearities(resolve(f_option, "f"), _timed({"f": f_option}, "f")).count
+
+
+def _output_parameters(options: dict, C) -> list[Parameter]:
+    """``C`` as a parameter, or (a function of time) as the option ``C``."""
+    if callable(C) or isinstance(C, (str, dict)):
+        options["C"] = _reference(C)
+        return []
+    return [Parameter.of("C", C, "output vector, y = C^T x")]
 
 
 def _timed(options: dict, key: str) -> bool:
@@ -150,19 +173,20 @@ def _stepping(max_substep: float, max_dy: float, input_degree: int) -> list[Para
 def ltv_plant_definition(model_name: str, A, C, f, k, b, m, x0, *, noise_std=0.0, noise_dt=1e-3,
                          noise_seed=0, max_substep=1e-3, max_dy=0.2, input_degree=2,
                          description: str = "") -> FmuDefinition:
-    """Plant FMU ``x' = A(t) x + k C^T x + b u + m f(y)``, ``y = C^T x + v``.
+    """Plant FMU ``x' = A(t) x + k C^T x + b u + sum_i m_i f_i(y)``, ``y = C^T x + v``.
 
-    ``A`` and ``f`` are module-level functions or ``"module:function"`` references; ``C``, ``k``,
-    ``b``, ``m``, ``x0`` are vectors of length n.  Outputs ``y`` (with the noise ``v``), the true
-    state ``x`` and the true ``theta = [-x(0); k; b; m]``.  Checked by building the block once.
+    ``A``, ``f`` (and ``C`` if it is ``C(t)``) are module-level functions, ``"module:function"``
+    references or expression functions; ``C``, ``k``, ``b``, ``x0`` are vectors of length n, ``m`` a
+    vector (one nonlinearity) or the ``n x p`` matrix ``[m_1, ..., m_p]``.  Outputs ``y`` (with the
+    noise ``v``), the true state ``x`` and the true ``theta = [-x(0); k; b; m_1; ...; m_p]``.  Checked by
+    building the block once.
     """
-    n = np.size(C)
     options = {"A": _reference(A), "f": _reference(f)}
-    parameters = [
-        Parameter.of("C", C, "output vector, y = C^T x"),
+    n, p = _sizes(C, options["f"])
+    parameters = _output_parameters(options, C) + [
         Parameter.of("k", k, "unknown output injection k C^T x"),
         Parameter.of("b", b, "unknown input vector b u"),
-        Parameter.of("m", m, "unknown gain of the nonlinearity m f(y)"),
+        Parameter.of("m", m, "unknown gains of the nonlinearities, sum_i m_i f_i(y) (column i: m_i)"),
         Parameter.of("x0", x0, "unknown initial state x(0)"),
         _scalar("noise_std", noise_std, "standard deviation of the measurement noise on y (0: none)"),
         _scalar("noise_dt", noise_dt, "hold interval of the measurement noise", "s"),
@@ -176,8 +200,9 @@ def ltv_plant_definition(model_name: str, A, C, f, k, b, m, x0, *, noise_std=0.0
         inputs=[Port("u", 1, "plant input u", scalar=True)],
         outputs=[Port("y", 1, "measured output y = C^T x (+ noise)", scalar=True),
                  Port("x", n, "true state x"),
-                 Port("theta", 4 * n,
-                      "true Theta = [-x(0); k; b; m] of regression (7), to compare with theta_hat")],
+                 Port("theta", (3 + p) * n,
+                      "true Theta = [-x(0); k; b; m] of regression (7), to compare with theta_hat"
+                      + ("" if p == 1 else " (m: its columns m_1, ..., m_p one after another)"))],
     )
     _check(definition)
     return definition
@@ -198,11 +223,12 @@ def ltv_observer_definition(model_name: str, A, C, L, f, *, gamma=1000.0, beta=1
     ``gamma``, ``beta``, ``f0``, ``M``; output ``F_max``), ``"drem"`` (``gamma``, ``extension_rate``) or
     ``"gradient"`` (``gamma``).  Checked by building the block once.
     """
-    n = np.size(C)
-    zeros = np.zeros(n)
     unknowns = tuple(unknowns)
     known = dict(known or {})
     options = {"A": _reference(A), "L": _reference(L), "f": _reference(f)}
+    n, p = _sizes(C, options["f"])
+    sizes = {"x": n, "k": n, "b": n, "m": n * p}
+    zeros = {"x": np.zeros(n), "k": np.zeros(n), "b": np.zeros(n), "m": np.zeros((n, p) if p > 1 else n)}
     if unknowns != PARTS:
         options["unknowns"] = ",".join(unknowns)
     if estimator != ESTIMATORS[0]:
@@ -219,12 +245,11 @@ def ltv_observer_definition(model_name: str, A, C, L, f, *, gamma=1000.0, beta=1
             raise ParameterError(f"{name}_hat0: {name} is known (not in unknowns); it has no estimate")
     values = [Parameter.of(name, known[name], f"known {name} (not estimated)") for name in PARTS
               if name not in unknowns and name in known]
-    parameters = [
-        Parameter.of("C", C, "output vector, y = C^T x"),
-    ] + values + [
+    parameters = _output_parameters(options, C) + values + [
         _scalar("gamma", gamma, f"adaptation gain of the {estimator} estimator"),
     ] + _estimator_parameters(estimator, beta, f0, M, extension_rate) \
-      + [Parameter.of(name, zeros if value is None else value, text) for name, value, text in estimates] \
+      + [Parameter.of(name, zeros[name[0]] if value is None else value, text)
+         for name, value, text in estimates] \
       + _stepping(max_substep, max_dy, input_degree) \
       + [_scalar("f_correction", f_correction, "1: inside a step y follows the polynomial of y - C^T m_hat "
                  "int f(y) plus that fast part (for outputs f(y) makes oscillate between samples); "
@@ -239,10 +264,11 @@ def ltv_observer_definition(model_name: str, A, C, L, f, *, gamma=1000.0, beta=1
         parameters=parameters,
         inputs=[Port("u", 1, "plant input u", scalar=True), Port("y", 1, "measured output y", scalar=True)],
         outputs=[Port("x_hat", n, "state estimate x_hat (10)"),
-                 Port("theta_hat", n * (1 + len(unknowns)), f"estimate of Theta = [-x(0); {'; '.join(unknowns)}]"
-                      if unknowns else "estimate of Theta = -x(0)"),
+                 Port("theta_hat", n + sum(sizes[name] for name in unknowns),
+                      f"estimate of Theta = [-x(0); {'; '.join(unknowns)}]" if unknowns else "estimate of Theta = -x(0)"),
                  Port("k_hat", n, "estimate of k"), Port("b_hat", n, "estimate of b"),
-                 Port("m_hat", n, "estimate of m"), Port("x0_hat", n, "estimate of x(0)")]
+                 Port("m_hat", n * p, "estimate of m" if p == 1 else "estimate of m: its columns m_1, ..., m_p"),
+                 Port("x0_hat", n, "estimate of x(0)")]
                 + ([Port("F_max", 1, "largest eigenvalue of the estimator gain F (bounded by M)", scalar=True)]
                    if estimator == ESTIMATORS[0] else [])
                 + contract_ports(contract),

@@ -55,8 +55,19 @@ def _bad(old: str, new: str, text: str = GOOD) -> str:
 
 
 BAD = {
-    "C(t)": (_bad('L = [0, 9]\n', 'L = [0, 9]\n', _bad('C = [1, 0]\nL', 'C = ["1", "sin(t)"]\nL')),
-             "components.observer.C: '1' is an expression; a time-varying C(t) (paper 001 allows it) is not supported"),
+    "C(t) unobservable later": (_bad('C = [1, 0]\nL', 'C = ["where(t > 5, 0, 1)", 0]\nL'),
+                                "components.observer.C: (A0(t), C^T) is not observable at t = 5.02513"),
+    "C(t) of y": (_bad('C = [1, 0]\nL', 'C = ["y", 0]\nL'), "components.observer.C[1]"),
+    "f_correction with C(t)": (_bad('C = [1, 0]\nL', 'C = ["1 + 0.1 * sin(t)", 0]\nf_correction = true\nL'),
+                               "components.observer.f_correction: resolves the fast part of y that m f(y) drives "
+                               "for one f of y only and a constant C; this plant has C(t)"),
+    "m of two nonlinearities": (_bad('f = "y**3"\nunknowns', 'f = ["y**3", "sin(y)"]\nunknowns'),
+                                "components.observer.m: expected an n x p = 2 x 2 matrix (one column m_i per "
+                                "nonlinearity f_i), got shape (2,)"),
+    "m_hat0 of two nonlinearities": (_bad('f = "y**3"\nunknowns = "k"\nb = [0, 1]\nm = [0, -0.5]',
+                                          'f = ["y**3", "sin(y)"]\nunknowns = "k, m"\nb = [0, 1]\n'
+                                          'm_hat0 = [[0, 1, 2], [0, 0, 0]]'),
+                                     "components.observer.m_hat0: expected an n x p = 2 x 2 matrix"),
     "zero C": (_bad('C = [1, 0]\nL', 'C = [0, 0]\nL'), "components.observer.C: the output vector is zero"),
     "A shape": (_bad('A = [[0, 1], [0, 0]]\nC = [1, 0]\nL', 'A = [[0, 1, 2], [0, 0, 1]]\nC = [1, 0]\nL'),
                 "components.observer.A: expected 2 x 2 expressions (rows)"),
@@ -81,7 +92,7 @@ BAD = {
                               "for an exact regression only"),
     "f of t with f_correction": (_bad('f = "y**3"\nunknowns', 'f = "t * y"\nf_correction = true\nunknowns'),
                                  "components.observer.f_correction: resolves the fast part of y that m f(y) drives "
-                                 "for an f of y only; this f depends on t"),
+                                 "for one f of y only and a constant C; this plant has f depending on t"),
     "f of x": (_bad('f = "y**3"\nunknowns', 'f = "x[1]"\nunknowns'), "components.observer.f[1]"),
 }
 
