@@ -259,9 +259,19 @@ def _require_exciting(observer_definition: FmuDefinition, values: dict, context:
         raise ParameterError(
             f"{context.prefix}input: {names[1]!r} does not excite the regressions over {samples} samples of "
             f"{names[0]!r}: nu_gamma = {observer.nu_gamma:.1e}, nu_eta = {observer.nu_eta:.1e} (excited needs both "
-            f"< excitation_tol = {values['excitation_tol']:g}; Statement 2); gamma and the state are not identified")
+            f"< excitation_tol = {values['excitation_tol']:g}; Statement 2); gamma and the state are not identified"
+            f"{_gain_hint(observer, values)}")
     context.notes.append(f"{context.prefix.rstrip('.')}: input {names[1]!r} excites {names[0]!r} over {samples} "
                          f"samples: nu_gamma = {observer.nu_gamma:.1e}, nu_eta = {observer.nu_eta:.1e}")
+
+
+def _gain_hint(observer: GpeboObserver, values: dict) -> str:
+    """With a whole gamma unknown, |Delta| of the many rows is tiny: k_gamma must be below Delta^2."""
+    if all(form == "last" for form in _unknown_forms(values)):
+        return ""
+    return (f"; with a whole gamma unknown the regression has p = {observer.regression.p} unknowns and |Delta| of "
+            f"p rows is small: k_gamma = {values['k_gamma']:g} must be below Delta^2 (docs/adaptive-gpebo.md, "
+            "\"Full gamma\")")
 
 
 def _define_observer(model_name: str, values: dict, context: Context) -> list:

@@ -112,7 +112,7 @@ class CompanionRegression:
     """
 
     MAX_ROWS = 7
-    MAX_UNKNOWNS = 60
+    MAX_UNKNOWNS = 50     #: measured: beyond ~50 normalised rows DREM's |Delta| falls below round-off (docs)
     MAX_TERMS = 6
 
     def __init__(self, model: GeneratorModel, unknown):
@@ -135,7 +135,8 @@ class CompanionRegression:
         self._choose_normaliser(groups)
         if self.p > self.MAX_UNKNOWNS:
             raise ParameterError(f"{self.field}: the full-gamma regression has {self.p} unknowns; at "
-                                 f"most {self.MAX_UNKNOWNS} are supported (DREM needs that many independent rows)")
+                                 f"most {self.MAX_UNKNOWNS} are supported (DREM's Delta of that many rows falls below round-off): "
+                                 "use smaller generators, fewer terms or \"last\" for a generator")
         self._recoveries()
 
     # ------------------------------------------------------------------ building
