@@ -327,12 +327,13 @@ register("gpebo-observer", "Adaptive observer of paper 000 (GPEBO + DREM) for a 
          ) + tuple(
              Field(f"{name}_unknown", "choice", f"which entries of {name} the observer estimates: \"last\" "
                    f"({name} = [0, ..., 0, g], g unknown) or \"all\" (the whole vector: the regression of "
-                   "docs/adaptive-gpebo.md, \"Full gamma\")", "last", choices=UNKNOWN_FORMS)
+                   "docs/adaptive-gpebo.md, \"Full gamma\")", "last", choices=UNKNOWN_FORMS, example='"all"')
              for name in GENERATORS) + (
              Field("eta_hat0", "vector", "initial [xi_beta; xi_theta; xi_delta](0) (absent: zero)", None,
                    example="[0, 0, 0, 0]"),
              Field("x_hat0", "vector", "initial estimate x_hat(0) (absent: zero)", None, example="[0, 0]"),
-             Field("k_gamma", "number", "gain k of Statement 2 for sigma (small: fast; rows normalised)", 1e-8,
+             Field("k_gamma", "number", "gain k of Statement 2 for sigma (small: fast; rows normalised; with a whole "
+                   "gamma unknown it must be below Delta^2 of p rows, e.g. 1e-30 for p = 29)", 1e-8,
                    example="1e-8"),
              Field("k_eta", "number", "gain k of Statement 2 for eta", 1e-8, example="1e-8"),
              Field("restart_tol", "number", "relative change of gamma_hat that restarts the GPEBO filters", 1e-11,
