@@ -2,7 +2,9 @@
 
 The plant class (1)-(2): ``x(k+1) = A x(k) + e_n beta(k) u(k) + theta(k) o f(y(k)) + delta(k)``,
 ``y = x_1``, ``A`` the shift matrix, ``beta = h_beta xi_beta``, ``theta = H_theta xi_theta``,
-``delta = H_delta xi_delta``, ``xi(k+1) = Gamma xi(k)``, ``Gamma = Gamma0 + gamma e_1^T``.  ``f`` is
+``delta = H_delta xi_delta``, ``xi(k+1) = Gamma xi(k)``, ``Gamma = Gamma0 + gamma e_1^T``; the observer
+estimates per generator ``g`` of ``gamma = [0, ..., 0, g]`` (``gamma_*_unknown = "last"``, the default) or
+the whole ``gamma`` (``"all"``, :mod:`observers.gpebo.companion`).  ``f`` is
 a vector of expressions of ``y``; the rest are matrices.  Both components are discrete: the file's
 ``step`` must be their ``Ts``.
 
@@ -13,8 +15,9 @@ Checked before anything is built (one line naming the field, exit 2):
 * the observer's structure: every generator reaches the output, the rows of the regression (16) have
   full rank on generic data (:func:`structural_rank`), the regression's shift ``D`` keeps the
   sign of every ``g`` (:class:`~observers.gpebo.regression.ShiftRegression`), the generators are of the
-  form ``gamma = [0, ..., 0, g]`` with ``g != 0`` where the regression divides by it (the paper's
-  ``gamma_beta != 0``), the initial guesses nonzero there;
+  form ``gamma = [0, ..., 0, g]`` (unless declared ``"all"``) with nonzero entries where the regression
+  divides by them (the paper's ``gamma_beta != 0``; ``gamma_d`` of a whole gamma), the initial guesses
+  nonzero there; a whole gamma within the regression's limits (rows, unknowns) and of an existing generator;
 * the plant named by ``plant``: same ``Ts``, same structure, its generators of that form;
 * excitation of the chosen input: with ``plant`` and ``input`` given, the observer itself (the code
   the FMU runs) is run in memory on the plant driven by the input for ``excitation_samples`` samples;

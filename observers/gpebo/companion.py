@@ -123,7 +123,8 @@ class CompanionRegression:
         self.slots, names = _variables(model.sizes, self.unknown)
         self.names = tuple(names)
         self.terms = io_terms(model, self.MAX_TERMS)
-        self.field = next(f"{GENERATORS[v]}_unknown" for v, form in enumerate(self.unknown) if form == "all")
+        self.field = next((f"{GENERATORS[v]}_unknown" for v, form in enumerate(self.unknown) if form == "all"),
+                          "gamma_unknown")     #: the field a limit's refusal names
         sizes = [model.sizes[v] for v, _, _ in self.terms]
         self.R = 1 + sum(sizes)
         if self.R > self.MAX_ROWS:
