@@ -2,7 +2,9 @@
 
 The plant class (1)-(2): ``x(k+1) = A x(k) + e_n beta(k) u(k) + theta(k) o f(y(k)) + delta(k)``,
 ``y = x_1``, ``A`` the shift matrix, ``beta = h_beta xi_beta``, ``theta = H_theta xi_theta``,
-``delta = H_delta xi_delta``, ``xi(k+1) = Gamma xi(k)``, ``Gamma = Gamma0 + gamma e_1^T``.  ``f`` is
+``delta = H_delta xi_delta``, ``xi(k+1) = Gamma xi(k)``, ``Gamma = Gamma0 + gamma e_1^T``; the observer
+estimates per generator ``g`` of ``gamma = [0, ..., 0, g]`` (``gamma_*_unknown = "last"``, the default) or
+the whole ``gamma`` (``"all"``, :mod:`observers.gpebo.companion`).  ``f`` is
 a vector of expressions of ``y``; the rest are matrices.  Both components are discrete: the file's
 ``step`` must be their ``Ts``.
 
@@ -13,8 +15,9 @@ Checked before anything is built (one line naming the field, exit 2):
 * the observer's structure: every generator reaches the output, the rows of the regression (16) have
   full rank on generic data (:func:`structural_rank`), the regression's shift ``D`` keeps the
   sign of every ``g`` (:class:`~observers.gpebo.regression.ShiftRegression`), the generators are of the
-  form ``gamma = [0, ..., 0, g]`` with ``g != 0`` where the regression divides by it (the paper's
-  ``gamma_beta != 0``), the initial guesses nonzero there;
+  form ``gamma = [0, ..., 0, g]`` (unless declared ``"all"``) with nonzero entries where the regression
+  divides by them (the paper's ``gamma_beta != 0``; ``gamma_d`` of a whole gamma), the initial guesses
+  nonzero there; a whole gamma within the regression's limits (rows, unknowns) and of an existing generator;
 * the plant named by ``plant``: same ``Ts``, same structure, its generators of that form;
 * excitation of the chosen input: with ``plant`` and ``input`` given, the observer itself (the code
   the FMU runs) is run in memory on the plant driven by the input for ``excitation_samples`` samples;
@@ -32,6 +35,8 @@ import numpy as np
 from observers.block import Segment
 from observers.checks import ParameterError, SignalError
 from observers.gpebo import GpeboObserver
+from observers.gpebo.companion import UNKNOWN_FORMS
+from observers.gpebo.terms import GENERATORS
 
 from ..runtime.definition import FmuDefinition
 from ..runtime.functions import expression_function
@@ -164,19 +169,30 @@ def _same(a, b) -> bool:
 
 
 def _require_plant_form(observer: GpeboObserver, plant: dict, values: dict, context: Context) -> None:
-    """The plant's generators are ``[0, ..., 0, g]`` (g nonzero where the regression divides), same ``Ts``."""
+    """The plant's generators have the declared form (``[0, ..., 0, g]`` unless ``gamma_*_unknown = "all"``),
+    nonzero where the regression divides, same ``Ts``."""
     if plant["Ts"] != values["Ts"]:
         raise ParameterError(f"{context.prefix}Ts: {values['Ts']:g} differs from the plant's Ts = {plant['Ts']:g}")
-    regression = observer.regression
-    for v, name in enumerate(regression.names):
-        gamma = np.asarray(plant[name], dtype=float)
-        if np.any(gamma[:-1]):
+    regression, vectors = observer.regression, []
+    for name, form in zip(GENERATORS, _unknown_forms(values)):
+        gamma = np.asarray(plant[name] if plant[name] is not None else [], dtype=float)
+        if form == "last" and np.any(gamma[:-1]):
             raise ParameterError(f"{context.prefix}plant: {name} of {values['plant']!r} is {gamma.tolist()}, not "
                                  "[0, ..., 0, g]: the observer's regression assumes one unknown coefficient per "
-                                 "generator")
-        if v in regression.divisors and gamma[-1] == 0:
-            raise ParameterError(f"{context.prefix}plant: {name} of {values['plant']!r} ends in 0; the regression "
-                                 f"is divided by it (the paper assumes {name} != 0)")
+                                 f"generator (set {name}_unknown = \"all\" to estimate the whole vector)")
+        vectors.append(gamma)
+    truth = regression.unknowns(*vectors)
+    for v in regression.divisors:
+        if truth[v] == 0:
+            name = regression.names[v]
+            where = "ends in 0" if name in GENERATORS else f"has {name} = 0"
+            raise ParameterError(f"{context.prefix}plant: {name.split('[')[0]} of {values['plant']!r} {where}; the "
+                                 f"regression is divided by it (the paper assumes {name} != 0)")
+
+
+def _unknown_forms(values: dict) -> tuple[str, ...]:
+    """``gamma_beta_unknown``, ``gamma_theta_unknown``, ``gamma_delta_unknown``: "last" or "all"."""
+    return tuple(values[f"{name}_unknown"] for name in GENERATORS)
 
 
 def structural_rank(observer: GpeboObserver, seed: int = 0) -> tuple[int, int]:
@@ -246,9 +262,19 @@ def _require_exciting(observer_definition: FmuDefinition, values: dict, context:
         raise ParameterError(
             f"{context.prefix}input: {names[1]!r} does not excite the regressions over {samples} samples of "
             f"{names[0]!r}: nu_gamma = {observer.nu_gamma:.1e}, nu_eta = {observer.nu_eta:.1e} (excited needs both "
-            f"< excitation_tol = {values['excitation_tol']:g}; Statement 2); gamma and the state are not identified")
+            f"< excitation_tol = {values['excitation_tol']:g}; Statement 2); gamma and the state are not identified"
+            f"{_gain_hint(observer, values)}")
     context.notes.append(f"{context.prefix.rstrip('.')}: input {names[1]!r} excites {names[0]!r} over {samples} "
                          f"samples: nu_gamma = {observer.nu_gamma:.1e}, nu_eta = {observer.nu_eta:.1e}")
+
+
+def _gain_hint(observer: GpeboObserver, values: dict) -> str:
+    """With a whole gamma unknown, |Delta| of the many rows is tiny: k_gamma must be below Delta^2."""
+    if all(form == "last" for form in _unknown_forms(values)):
+        return ""
+    return (f"; with a whole gamma unknown the regression has p = {observer.regression.p} unknowns and |Delta| of "
+            f"p rows is small: k_gamma = {values['k_gamma']:g} must be below Delta^2 (docs/adaptive-gpebo.md, "
+            "\"Full gamma\")")
 
 
 def _define_observer(model_name: str, values: dict, context: Context) -> list:
@@ -262,14 +288,19 @@ def _define_observer(model_name: str, values: dict, context: Context) -> list:
     sizes = [np.size(structure["h_beta"]), np.shape(structure["H_theta"])[-1]]
     if structure["H_delta"] is not None:
         sizes.append(np.shape(structure["H_delta"])[-1])
-    gamma_hat0 = np.full(len(sizes), 0.5) if values["gamma_hat0"] is None else values["gamma_hat0"]
+    forms = _unknown_forms(values)
+    if structure["H_delta"] is None and forms[2] == "all":
+        raise ParameterError(f"{context.prefix}gamma_delta_unknown: \"all\" but there is no delta generator "
+                             "(H_delta absent)")
+    unknowns = sum(size if form == "all" else 1 for size, form in zip(sizes, forms))
+    gamma_hat0 = np.full(unknowns, 0.5) if values["gamma_hat0"] is None else values["gamma_hat0"]
     keywords = {key: values[key] for key in ("k_gamma", "k_eta", "eta_hat0", "restart_tol", "excitation_tol",
                                               "converged_tolerance", "theta_bound", "consistency_tol")}
     definition = gpebo_observer_definition(
         model_name, Ts=_positive(values, "Ts", context.prefix),
         gamma_hat0=gamma_hat0, x_hat0=x_hat0, f=_f_option(structure, np.size(x_hat0), context.prefix),
         h_beta=structure["h_beta"], H_theta=structure["H_theta"], H_delta=structure["H_delta"],
-        description=values["description"], **keywords)
+        gamma_unknown=forms, description=values["description"], **keywords)
     observer = block_of(definition)
     _require_identifiable(observer, context)
     if plant is not None:
@@ -279,7 +310,8 @@ def _define_observer(model_name: str, values: dict, context: Context) -> list:
 
 
 register("gpebo-observer", "Adaptive observer of paper 000 (GPEBO + DREM) for a generator-plant structure: "
-         "estimates the generator coefficients `g` (each generator `gamma = [0, ..., 0, g]`), the generator "
+         "estimates the generator coefficients `g` (each generator `gamma = [0, ..., 0, g]`, or its whole `gamma` "
+         "with `gamma_*_unknown = \"all\"`), the generator "
          "states and `x`. The structure is its own fields or, when absent, the `plant`'s. One step = one sample. "
          "Inputs `u`, `y`; outputs `x_hat`, `gamma_hat`, `eta_hat`, `beta_hat`, `theta_hat`, `excited`, "
          "`nu_gamma`, `nu_eta`, `restart_time`, `excitation`, `converged`.", (
@@ -293,11 +325,18 @@ register("gpebo-observer", "Adaptive observer of paper 000 (GPEBO + DREM) for a 
              Field("constants", "table", "named constants of the expressions f (absent: the plant's)", None,
                    example="{ a = 0.5 }"),
              Field("gamma_hat0", "vector", "initial g of each generator (beta, theta, delta), nonzero where the "
-                   "regression divides (absent: 0.5 each)", None, example="[-0.5, 0.5]"),
+                   "regression divides (absent: 0.5 each); with gamma_*_unknown = \"all\" one entry per unknown, "
+                   "in the order beta's, theta's, delta's", None, example="[-0.5, 0.5]"),
+         ) + tuple(
+             Field(f"{name}_unknown", "choice", f"which entries of {name} the observer estimates: \"last\" "
+                   f"({name} = [0, ..., 0, g], g unknown) or \"all\" (the whole vector: the regression of "
+                   "docs/adaptive-gpebo.md, \"Full gamma\")", "last", choices=UNKNOWN_FORMS, example='"all"')
+             for name in GENERATORS) + (
              Field("eta_hat0", "vector", "initial [xi_beta; xi_theta; xi_delta](0) (absent: zero)", None,
                    example="[0, 0, 0, 0]"),
              Field("x_hat0", "vector", "initial estimate x_hat(0) (absent: zero)", None, example="[0, 0]"),
-             Field("k_gamma", "number", "gain k of Statement 2 for sigma (small: fast; rows normalised)", 1e-8,
+             Field("k_gamma", "number", "gain k of Statement 2 for sigma (small: fast; rows normalised; with a whole "
+                   "gamma unknown it must be below Delta^2 of p rows, e.g. 1e-30 for p = 29)", 1e-8,
                    example="1e-8"),
              Field("k_eta", "number", "gain k of Statement 2 for eta", 1e-8, example="1e-8"),
              Field("restart_tol", "number", "relative change of gamma_hat that restarts the GPEBO filters", 1e-11,

@@ -74,16 +74,18 @@ class GpeboObserver(Block):
     Parameters
     ----------
     model : GeneratorModel
-        The known structure (``n``, ``h_beta``, ``H_theta``, ``H_delta``, ``f``); every generator is
-        ``gamma_• = [0, ..., 0, g_•]`` with ``g_•`` unknown (:func:`~observers.gpebo.regression.regression_for`).
+        The known structure (``n``, ``h_beta``, ``H_theta``, ``H_delta``, ``f``); by default every
+        generator is ``gamma_• = [0, ..., 0, g_•]`` with ``g_•`` unknown, else see ``gamma_unknown``
+        (:func:`~observers.gpebo.regression.regression_for`).
     Ts : float
         Sample period (s): the only communication step accepted.
     k_gamma, k_eta : float
         Gains ``k_i > 0`` of Statement 2 for the two DREMs (rows are
         normalised, so ``Delta^2 <= 1``; small ``k`` is fast: the error
         shrinks by ``1 + Delta^2 / k`` per sample).
-    gamma_hat0 : array_like, shape (number of generators,)
-        Initial ``[g_beta, g_theta(, g_delta)]``; the ones the regression divides by nonzero.
+    gamma_hat0 : array_like, shape (number of unknowns,)
+        Initial ``[g_beta, g_theta(, g_delta)]`` (or the entries ``regression.names``); the ones the
+        regression divides by nonzero.
     eta_hat0 : array_like, shape (N,), optional
         Initial ``xi_hat(0)`` (zeros by default).
     x_hat0 : array_like, shape (n,), optional
@@ -96,6 +98,10 @@ class GpeboObserver(Block):
         The ``converged`` criterion (module docstring).
     consistency_tol : float
         Largest a-priori relative residual of the last ``p`` gamma rows for ``converged`` (exact data only).
+    gamma_unknown : sequence of "last" | "all", optional
+        Per generator (beta, theta, delta) which entries of ``gamma`` are unknown: "last" (default)
+        ``gamma = [0, ..., 0, g]``, "all" the whole vector (:mod:`~observers.gpebo.companion`; then
+        ``gamma_hat0`` has one entry per unknown, in the order of ``regression.names``).
 
     Ports: inputs ``u``, ``y``; outputs ``x_hat`` (n), ``gamma_hat`` (number of generators),
     ``eta_hat`` (N), ``beta_hat``, ``theta_hat`` (n), ``excited``,
@@ -108,9 +114,9 @@ class GpeboObserver(Block):
     def __init__(self, model: GeneratorModel, Ts: float, k_gamma: float = 1e-8, k_eta: float = 1e-8,
                  gamma_hat0=(-0.5, 0.5), eta_hat0=None, x_hat0=None, restart_tol: float = 1e-11,
                  excitation_tol: float = 1e-9, converged_tolerance: float = 1e-6, theta_bound: float = 100.0,
-                 consistency_tol: float = 1e-10):
+                 consistency_tol: float = 1e-10, gamma_unknown=None):
         self.model = model
-        self.regression = regression_for(model)
+        self.regression = regression_for(model, gamma_unknown)
         self.Ts = require_positive("Ts", Ts)
         self.k_gamma = require_positive("k_gamma", k_gamma)
         self.k_eta = require_positive("k_eta", k_eta)

@@ -71,7 +71,9 @@ import numpy as np
 
 from observers.checks import ParameterError
 
+from .companion import CompanionRegression
 from .model import GeneratorModel
+from .terms import GENERATORS, MAPS, io_terms
 
 __all__ = ["ExampleRegression", "ShiftRegression", "regression_for", "is_example"]
 
@@ -82,8 +84,15 @@ def is_example(model: GeneratorModel) -> bool:
             and np.array_equal(model.H_theta, [[1.0, 0.0], [0.0, 0.0]]))
 
 
-def regression_for(model: GeneratorModel):
-    """The example's hand-derived regression for its structure, :class:`ShiftRegression` otherwise."""
+def regression_for(model: GeneratorModel, unknown=None):
+    """The regression for ``model`` with the unknown ``gamma`` entries ``unknown`` ("last" | "all" per generator).
+
+    Every generator "last" (the default, ``gamma = [0, ..., 0, g]``): the example's hand-derived
+    regression for its structure, :class:`ShiftRegression` otherwise; a whole ``gamma`` unknown somewhere:
+    :class:`~observers.gpebo.companion.CompanionRegression`.
+    """
+    if unknown is not None and any(form != "last" for form in unknown):
+        return CompanionRegression(model, unknown)
     return ExampleRegression(model) if is_example(model) else ShiftRegression(model)
 
 
@@ -132,6 +141,11 @@ class ExampleRegression:
     def full_coefficients(gammas) -> tuple[np.ndarray, np.ndarray]:
         """Generator vectors ``gamma_beta = [0, g_beta]``, ``gamma_theta = [0, g_theta]`` of the example."""
         return np.array([0.0, gammas[0]]), np.array([0.0, gammas[1]])
+
+    @staticmethod
+    def unknowns(*vectors) -> np.ndarray:
+        """The unknowns ``[g_beta, g_theta]`` of the generator vectors (inverse of :meth:`full_coefficients`)."""
+        return np.array([float(vector[-1]) for vector in vectors[:2]])
 
     @staticmethod
     def error_bound(sigma_hat, sigma_error) -> float:
@@ -191,23 +205,15 @@ class ShiftRegression:
     """
 
     MAX_TERMS = 6
-    GENERATORS = ("gamma_beta", "gamma_theta", "gamma_delta")
-    MAPS = ("h_beta", "H_theta", "H_delta")     #: the fields that give each generator's size and output map
+    GENERATORS = GENERATORS
+    MAPS = MAPS
 
     def __init__(self, model: GeneratorModel):
         self.model = model
         present = [v for v, size in enumerate(model.sizes) if size]
         self.names = tuple(self.GENERATORS[v] for v in present)
-        self.terms = self._terms(model)       # (generator index, signal: "u" | i of f_i | "1", offset)
-        reached = {generator for generator, _, _ in self.terms}
-        for v in present:
-            if v not in reached:
-                raise ParameterError(f"{self.MAPS[v]}: is zero, so the {self.GENERATORS[v][6:]} generator does not "
-                                     f"reach the output: {self.GENERATORS[v]} is not identifiable")
+        self.terms = io_terms(model, self.MAX_TERMS)
         T = len(self.terms)
-        if T > self.MAX_TERMS:
-            raise ParameterError(f"H_theta: the input-output form has {T} terms (beta, each nonzero row of "
-                                 f"H_theta, delta); the determinant regression takes at most {self.MAX_TERMS}")
         self.D = lcm(*(model.sizes[v] for v in present))
         self.orders = np.array([self.D // model.sizes[v] for v in present])
         for v, name, order in zip(present, self.names, self.orders):
@@ -231,15 +237,6 @@ class ShiftRegression:
         self._weights = np.zeros((len(monomials), len(perms)))
         self._weights[groups.ravel(), np.arange(len(perms))] = signs
         self._choose_normaliser(monomials)
-
-    @staticmethod
-    def _terms(model: GeneratorModel) -> list[tuple[int, object, int]]:
-        n = model.n
-        terms = [(0, "u", 0)] if np.any(model.h_beta) else []
-        terms += [(1, i, n - 1 - i) for i in range(n) if np.any(model.H_theta[i])]
-        if np.any(model.H_delta):
-            terms.append((2, "1", 0))
-        return terms
 
     def _choose_normaliser(self, monomials: np.ndarray) -> None:
         """``alpha0`` (lowest total degree first) from which every ``G_v`` is recoverable (:meth:`gammas`)."""
@@ -291,6 +288,10 @@ class ShiftRegression:
                 vector[-1] = gammas[self.names.index(self.GENERATORS[v])]
             vectors.append(vector)
         return tuple(vectors)
+
+    def unknowns(self, *vectors) -> np.ndarray:
+        """The unknowns ``g`` of the present generators' vectors (inverse of :meth:`full_coefficients`)."""
+        return np.array([float(vector[-1]) for vector, size in zip(vectors, self.model.sizes) if size])
 
     def error_bound(self, sigma_hat, sigma_error) -> float:
         """Bound on ``max |gamma_hat - gamma|`` from ``|sigma_hat - sigma| <= sigma_error`` (entrywise)."""

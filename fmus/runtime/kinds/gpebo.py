@@ -43,7 +43,7 @@ def _gpebo_observer(p, options):
     return GpeboObserver(_model(p, options, p["x_hat0"].size), float(p["Ts"]), float(p["k_gamma"]),
                          float(p["k_eta"]), p["gamma_hat0"], p["eta_hat0"], p["x_hat0"],
                          float(p["restart_tol"]), float(p["excitation_tol"]), *contract_values(p, GPEBO_CONTRACT),
-                         consistency_tol=float(p["consistency_tol"]))
+                         consistency_tol=float(p["consistency_tol"]), gamma_unknown=options.get("gamma_unknown"))
 
 
 def _scalar(name, value, description, unit=None) -> Parameter:
@@ -104,16 +104,26 @@ def generator_plant_definition(model_name: str, *, gamma_beta=EXAMPLE["gamma_bet
     )
 
 
+def _observer_options(f, gamma_unknown) -> dict:
+    """``f``, and ``gamma_unknown`` only where a whole ``gamma`` is unknown (today's FMUs unchanged)."""
+    if gamma_unknown is None or all(form == "last" for form in gamma_unknown):
+        return {"f": f}
+    return {"f": f, "gamma_unknown": list(gamma_unknown)}
+
+
 def gpebo_observer_definition(model_name: str, *, Ts: float = 1.0, k_gamma: float = 1e-8, k_eta: float = 1e-8,
                               gamma_hat0=(-0.5, 0.5), eta_hat0=None, x_hat0=None, restart_tol: float = 1e-11,
                               excitation_tol: float = 1e-9, converged_tolerance: float = 1e-6,
                               theta_bound: float = 100.0, consistency_tol: float = 1e-10, f="plants.gpebo:sine", h_beta=EXAMPLE["h_beta"],
-                              H_theta=EXAMPLE["H_theta"], H_delta=None, description: str = "") -> FmuDefinition:
+                              H_theta=EXAMPLE["H_theta"], H_delta=None, gamma_unknown=None,
+                              description: str = "") -> FmuDefinition:
     """GPEBO + DREM observer of paper 000 for the structure ``h_beta``, ``H_theta``, ``H_delta``, ``f``.
 
     ``n`` is the number of rows of ``H_theta``, the generator sizes are ``len(h_beta)`` and the columns
     of ``H_theta``, ``H_delta``; every generator is ``gamma = [0, ..., 0, g]`` with ``g`` unknown
-    (``gamma_hat0``: one initial ``g`` per generator).  Defaults: the paper's example.  The observer is
+    (``gamma_hat0``: one initial ``g`` per generator), unless ``gamma_unknown`` ("last" | "all" per
+    generator, an option of the FMU) makes a whole ``gamma`` unknown (``gamma_hat0``: one entry per
+    unknown).  Defaults: the paper's example.  The observer is
     built once here, so a structure its regression cannot take is refused before the FMU exists.
     """
     H_theta = np.asarray(H_theta, dtype=float)
@@ -122,7 +132,7 @@ def gpebo_observer_definition(model_name: str, *, Ts: float = 1.0, k_gamma: floa
     model = GeneratorModel.checked(x_hat0.size, h_beta, H_theta, H_delta, resolve(f, "f"))
     eta_hat0 = np.zeros(model.N) if eta_hat0 is None else eta_hat0
     names = GpeboObserver(model, Ts, k_gamma, k_eta, gamma_hat0, eta_hat0, x_hat0, restart_tol, excitation_tol,
-                          converged_tolerance, theta_bound, consistency_tol).regression.names
+                          converged_tolerance, theta_bound, consistency_tol, gamma_unknown).regression.names
     coefficients = ", ".join(names)
     return FmuDefinition(
         model_name=model_name,
@@ -158,6 +168,6 @@ def gpebo_observer_definition(model_name: str, *, Ts: float = 1.0, k_gamma: floa
             Port("nu_eta", 1, "guaranteed error factor of eta_hat since restart_time", scalar=True),
             Port("restart_time", 1, "time of the last restart of the GPEBO filters", "s", scalar=True),
         ] + contract_ports(GPEBO_CONTRACT),
-        options={"f": f},
+        options=_observer_options(f, gamma_unknown),
         variable_step=False,  # one step = one sample of length Ts
     )

@@ -178,3 +178,59 @@ def test_the_structural_rank_of_the_examples_is_full():
     for path in (ROOT / "fmus/scenarios/discrete_gpebo/system.toml", ROOT / "examples/gpebo_shift3.toml"):
         observer = [d for d in load_system(path).definitions() if d.kind == "gpebo-observer"][0]
         assert structural_rank(block_of(observer)) == (5, 5)
+
+
+# ------------------------------------------------------------------ whole gamma vectors unknown (gamma_*_unknown)
+FULL_PLANT = [("gamma_beta = [0, -1]", "gamma_beta = [1.2, -1.0]"), ("gamma_theta = [0, 1]", "gamma_theta = [1.0, -0.96]")]
+FULL_OBSERVER = ('gamma_hat0 = [-0.5, 0.5]', 'gamma_hat0 = [0.5, 0.5, 0.5, 0.5]\ngamma_beta_unknown = "all"\n'
+                 'gamma_theta_unknown = "all"\nk_gamma = 1e-30\nexcitation_samples = 80')
+
+
+def full(*more):
+    return FULL_PLANT + [FULL_OBSERVER] + list(more)
+
+
+def test_whole_gammas_build_and_their_input_is_checked():
+    spec = system(replace=full())
+    observer = [d for d in spec.definitions() if d.kind == "gpebo-observer"][0]
+    assert observer.options["gamma_unknown"] == ["all", "all", "last"]
+    assert [p for p in observer.outputs if p.name == "gamma_hat"][0].size == 4
+    ordinary = [d for d in system().definitions() if d.kind == "gpebo-observer"][0]
+    assert "gamma_unknown" not in ordinary.options          # today's files: the same FMU options
+
+
+@pytest.mark.parametrize("more, match", [
+    (('k_gamma = 1e-30', 'k_gamma = 1e-30\ngamma_delta_unknown = "all"'),
+     r'components.observer.gamma_delta_unknown: "all" but there is no delta generator'),
+    (('gamma_beta_unknown = "all"', 'gamma_beta_unknown = "some"'),
+     r"components.observer.gamma_beta_unknown: 'some' is not one of last, all"),
+    (('gamma_hat0 = [0.5, 0.5, 0.5, 0.5]', 'gamma_hat0 = [0.5, 0.5]'), r"components.observer.gamma_hat0: expected 4"),
+    (('gamma_hat0 = [0.5, 0.5, 0.5, 0.5]', 'gamma_hat0 = [0.5, 0.5, 0.5, 0]'),
+     r"components.observer.gamma_hat0: gamma_theta\[2\] \(entry 4\) must be nonzero"),
+    (("gamma_beta = [1.2, -1.0]", "gamma_beta = [1.2, 0]"),
+     r"components.observer.plant: gamma_beta of 'plant' has gamma_beta\[2\] = 0; the regression is divided by it"),
+    (('k_gamma = 1e-30', 'k_gamma = 1e-8'),
+     r"components.observer.input: 'source' does not excite the regressions over 80 samples of 'plant': .*; with a "
+     r"whole gamma unknown the regression has p = 29 unknowns .* k_gamma = 1e-08 must be below Delta\^2"),
+])
+def test_whole_gamma_refusals(more, match):
+    refused(match, replace=full(more))
+
+
+def test_too_many_unknowns_are_refused_naming_the_field():
+    # generator sizes 3 and 2, both whole: 1 + 3 + 2 = 6 rows but 59 unknowns (measured: DREM cannot take them)
+    refused(r"components.observer.gamma_beta_unknown: the full-gamma regression has 59 unknowns; at most 50",
+            replace=full(("h_beta = [1, 0]", "h_beta = [1, 0, 0]"), ("xi_beta0 = [1.0, 0.5]", "xi_beta0 = [1, 0.5, 0.2]"),
+                         ("gamma_beta = [1.2, -1.0]", "gamma_beta = [0.3, -0.5, 0.8]"),
+                         ("gamma_hat0 = [0.5, 0.5, 0.5, 0.5]", "gamma_hat0 = [0.5, 0.5, 0.5, 0.5, 0.5]")))
+
+
+def test_a_plant_outside_the_last_form_names_the_field_that_admits_it():
+    refused(r'components.observer.plant: gamma_theta of .* not \[0, ..., 0, g\].*set gamma_theta_unknown = "all"',
+            replace=[("gamma_theta = [0, 1]", "gamma_theta = [0.3, 1]")])
+
+
+def test_a_whole_gamma_regression_of_rank_0_is_refused_whatever_the_input():
+    # f = 0: the theta term vanishes, every row of the regression is 0 on generic data
+    refused(r"components.observer.f: with this f and H_theta the regression \(16\) has 29 unknowns but rank 0",
+            replace=full(('f = ["sin(y)", "sin(y)"]', 'f = ["0", "0"]')))
