@@ -8,7 +8,8 @@ times ``C`` is (see :mod:`~observers.uio.design`: ``C G_i = 0`` for ``i >= 1``)
 
 exact at every instant (zero filter states, constant ``k_1``).
 
-Stage 2, eqs. (13)-(17), for constant ``theta = H xi(0)`` (``Gamma = 0``).  With
+Stage 2, eqs. (13)-(17), for constant ``theta = H xi(0)`` (``Gamma = 0``; a known generator
+``Gamma != 0`` modulates the filters of ``s``, :meth:`RegressionSignals._modulated_rows`).  With
 ``z_bar = z + Phi x_tilde(0)`` the plant state is
 ``x = z_bar + sum_i G_i y^(i)`` (9); put it into (1) and multiply by ``B_bar``
 (``B_bar B = 1``), using ``z_bar' = F z_bar + L_tilde y``:
