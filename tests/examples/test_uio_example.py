@@ -135,19 +135,24 @@ def test_the_plant_agrees_with_the_scipy_reference(clean):
     assert np.abs(x).max() > 0.5                                                      # it moved
 
 
+def assert_reaches(run: dict, example: Example, final: dict, below: dict) -> None:
+    """Stage 1 exact once switched (0.304 s), every stage identified, the final errors below ``final[name]``
+    and the time from which they stay below ``below[name] = (tolerance, earliest, latest)`` in that window."""
+    e = errors(run, example)
+    t = run["time"]
+    assert e["x_tilde0"][t >= 0.5].max() < 1e-9                # 0 here
+    for name, bound in final.items():
+        assert e[name][-1] < bound, name
+    for name, (tolerance, earliest, latest) in below.items():
+        assert earliest < stays_below(t, e[name], tolerance) < latest, name
+    np.testing.assert_array_equal(columns(run, "observer.identified", 4)[-1], [1, 1, 1, 1])
+
+
 def test_the_estimates_reach_the_reference_values(clean):
-    e = errors(clean)
-    t = clean["time"]
-    assert e["x_tilde0"][t >= 0.5].max() < 1e-9       # stage 1 exact once switched (0.304 s): 0 here
-    assert e["omega"][-1] < 1e-6                       # 5.5e-8
-    assert e["xi0"][-1] < 1e-5                         # 1.6e-7
-    assert e["f"][-1] < 1e-5                           # 4.9e-7
-    assert e["x"][-1] < 1e-6                           # 3.0e-7 (relative)
-    assert 3.0 < stays_below(t, e["omega"], 1e-4) < 6.0      # 4.58 s
-    assert 3.0 < stays_below(t, e["xi0"], 1e-4) < 6.0        # 4.85 s
-    assert 3.0 < stays_below(t, e["f"], 1e-3) < 6.0          # 4.73 s
-    assert 5.0 < stays_below(t, e["x"], 1e-5) < 9.0          # 7.38 s (1e-4: also 7.38 s)
-    np.testing.assert_array_equal(columns(clean, "observer.identified", 4)[-1], [1, 1, 1, 1])
+    assert_reaches(clean, THIRD_ORDER,
+                   final={"omega": 1e-6, "xi0": 1e-5, "f": 1e-5, "x": 1e-6},     # 5.5e-8, 1.6e-7, 4.9e-7, 3.0e-7
+                   below={"omega": (1e-4, 3.0, 6.0), "xi0": (1e-4, 3.0, 6.0),   # 4.58 s, 4.85 s
+                          "f": (1e-3, 3.0, 6.0), "x": (1e-5, 5.0, 9.0)})        # 4.73 s, 7.38 s (1e-4: also)
 
 
 def test_converged_comes_after_the_true_convergence_and_never_falsely(clean):
@@ -202,19 +207,11 @@ def test_the_rotating_gain_plant_agrees_with_the_scipy_reference(rotating):
 
 def test_the_rotating_gain_estimates_reach_the_reference_values(rotating):
     """theta_hat(t) = H e^{Gamma t} xi0_hat follows the rotating theta; x_tilde(0) exact after stage 1."""
-    e = errors(rotating, ROTATING)
-    t = rotating["time"]
-    assert e["x_tilde0"][t >= 0.5].max() < 1e-9       # 0 after the stage-1 switch (0.304 s)
-    assert e["omega"][-1] < 1e-6                       # 1.8e-7
-    assert e["xi0"][-1] < 1e-6                         # 9.6e-8
-    assert e["theta"][-1] < 1e-6                       # 9.4e-8
-    assert e["f"][-1] < 1e-5                           # 1.2e-6
-    assert e["x"][-1] < 1e-6                           # 3.3e-7 (relative)
-    assert 3.0 < stays_below(t, e["omega"], 1e-4) < 6.5      # 5.03 s
-    assert 3.0 < stays_below(t, e["theta"], 1e-4) < 6.5      # 4.99 s
-    assert 3.0 < stays_below(t, e["f"], 1e-3) < 6.5          # 5.16 s
-    assert 5.0 < stays_below(t, e["x"], 1e-5) < 8.5          # 6.78 s
-    np.testing.assert_array_equal(columns(rotating, "observer.identified", 4)[-1], [1, 1, 1, 1])
+    assert_reaches(rotating, ROTATING,
+                   final={"omega": 1e-6, "xi0": 1e-6, "theta": 1e-6,            # 1.8e-7, 9.6e-8, 9.4e-8
+                          "f": 1e-5, "x": 1e-6},                                # 1.2e-6, 3.3e-7 (relative)
+                   below={"omega": (1e-4, 3.0, 6.5), "theta": (1e-4, 3.0, 6.5),  # 5.03 s, 4.99 s
+                          "f": (1e-3, 3.0, 6.5), "x": (1e-5, 5.0, 8.5)})        # 5.16 s, 6.78 s
 
 
 def test_the_rotating_gain_converged_comes_after_the_true_convergence_and_never_falsely(rotating):
