@@ -11,6 +11,11 @@ them).  Prints the numbers.
 
 16 runs of ~10 s alone (~45-90 s each on a loaded machine).  Rerunning reuses the stored samples (the sweep
 resumes) and recomputes failed ones.
+
+The second campaign, ``--knobs``, measures the advice of the docs against noise: at one noise level
+(:data:`KNOB_LEVEL`, where the default tuning is poor) each knob of :data:`KNOBS` is swept alone over a few
+values and three seeds (one sweep per knob, in ``OUT/knobs/``); it prints the table of docs/adaptive-uio.md
+and draws no figure (~27 runs).
 """
 
 from __future__ import annotations
@@ -51,10 +56,11 @@ def study_file(out: Path) -> Path:
     return path
 
 
-def sweep(out: Path, build: Path, workers: int) -> None:
-    command = [sys.executable, "-m", "fmus.cli", "sweep", "--config", str(study_file(out)),
-               "--vary", f"sensor.std={LEVELS}", "--vary", f"sensor.seed={SEEDS}", "--stop-time", str(STOP),
-               "--workers", str(workers), "--no-progress", "--no-plots", "--retry-failed", "--out", str(out), "--build-dir", str(build)]
+def sweep(out: Path, build: Path, workers: int, options: list[str]) -> None:
+    """``obsfmu sweep`` of the study file with ``options`` (its --vary / --set) into ``out``."""
+    command = [sys.executable, "-m", "fmus.cli", "sweep", "--config", str(study_file(out)), *options,
+               "--stop-time", str(STOP), "--workers", str(workers), "--no-progress", "--no-plots", "--retry-failed",
+               "--time-limit", "600", "--out", str(out), "--build-dir", str(build)]
     subprocess.run(command, check=True, cwd=ROOT)
 
 
@@ -129,15 +135,64 @@ def plot(samples: list[dict], path: Path) -> None:
     fig.savefig(path, dpi=80)
 
 
+#: the knobs docs/adaptive-uio.md names against noise, each swept alone at KNOB_LEVEL (None: the default tuning)
+KNOB_LEVEL = 1e-6
+KNOB_SEEDS = [1, 2, 3]
+KNOBS = {"default": None, "observer.gamma[2]": [1e8, 1e12], "observer.lambda2": [2.5, 5.0],
+         "observer.lambda3": [2.5, 5.0], "observer.settle_window": [2.0, 5.0]}
+#: what the knob table shows: (metric, label)
+KNOB_COLUMNS = [ERRORS[1], ERRORS[2], ERRORS[0]]
+
+
+def knob_folder(out: Path, knob: str) -> Path:
+    return out / "knobs" / re.sub(r"\W+", "_", knob).strip("_")
+
+
+def knob_sweeps(out: Path, build: Path, workers: int) -> None:
+    for knob, values in KNOBS.items():
+        varied = [] if values is None else ["--vary", f"{knob}={values}"]
+        sweep(knob_folder(out, knob), build, workers,
+              ["--set", f"sensor.std={KNOB_LEVEL:g}", "--vary", f"sensor.seed={KNOB_SEEDS}", *varied])
+
+
+def knob_table(out: Path) -> list[str]:
+    """Per knob value: final errors (median and range over the seeds) and convergence times (median, how many)."""
+    lines = [f"noise std {KNOB_LEVEL:g}, {len(KNOB_SEEDS)} seeds, {STOP:g} s | final error (median, min .. max): "
+             + " | ".join(label for _, label in KNOB_COLUMNS) + " | converged (median, of n): "
+             + ", ".join(f"{label} {tolerance:g}" for (_, label), tolerance in list(zip(TIMES, TOLERANCES))[:3])]
+    for knob, values in KNOBS.items():
+        samples = rows(knob_folder(out, knob))
+        for value_ in [None] if values is None else values:
+            chosen = [r for r in samples if value_ is None or r[knob] == value_]
+            ok = [r for r in chosen if r["status"] == "ok"]
+            cells = []
+            for metric, _ in KNOB_COLUMNS:
+                v = np.array([value(r, metric) for r in ok])
+                cells.append(f"{np.nanmedian(v):.1e} ({np.nanmin(v):.1e} .. {np.nanmax(v):.1e})" if v.size else "-")
+            times = [[convergence(r, m) for r in ok] for m, _ in TIMES[:3]]
+            converged = ", ".join(f"{np.median(t):.2f} s ({int(np.sum(np.isfinite(t)))}/{len(ok)})" for t in times)
+            name = "default" if value_ is None else f"{knob} = {value_:g}"
+            failed = f" ({len(chosen) - len(ok)} failed)" if len(ok) < len(chosen) else ""
+            lines.append(f"{name}{failed} | " + " | ".join(cells) + " | " + converged)
+    return lines
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--out", type=Path, default=ROOT / "results" / "noise-uio")   # keeps the sweep's samples
     parser.add_argument("--build-dir", type=Path, default=ROOT / "build")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--report-only", action="store_true", help="only the table and the figure")
+    parser.add_argument("--knobs", action="store_true", help="the second campaign: the knobs at one noise level")
     args = parser.parse_args(argv)
+    if args.knobs:
+        if not args.report_only:
+            knob_sweeps(args.out, args.build_dir, args.workers)
+        print("\n".join(knob_table(args.out)))
+        return 0
     if not args.report_only:
-        sweep(args.out, args.build_dir, args.workers)
+        sweep(args.out, args.build_dir, args.workers,
+              ["--vary", f"sensor.std={LEVELS}", "--vary", f"sensor.seed={SEEDS}"])
     samples = [r for r in rows(args.out) if r["sensor.std"] in LEVELS]
     print("\n".join(table(samples)))
     plot(samples, FIGURE)

@@ -7,7 +7,8 @@ and ``M`` of (3)-(4), ``L`` placing the chosen ``eig(F)``, ``F = M - L C``.  Ref
 anything is built, naming the field and the assumption: the relative-degree conditions
 (``C A^k B = 0`` for ``k < r - 1``, ``rank C A^(r-1) B = rank B``: (3) solvable), unstable zeros
 or poles (``F`` Hurwitz), ``B_bar B = 1``, the number of harmonics (known, >= 1, distinct positive
-frequencies) and a time-varying ``theta`` (the observer assumes ``Gamma = 0``).
+frequencies) and an unbounded generator of ``theta`` (``e^{Gamma t}`` must be bounded: every eigenvalue
+with ``Re <= 0``, those on the imaginary axis semisimple; :mod:`observers.uio.generator`).
 """
 
 from __future__ import annotations
@@ -15,8 +16,8 @@ from __future__ import annotations
 import numpy as np
 
 from observers.checks import ParameterError
-from observers.uio import (UIOFiniteTimeObserver, UIOSettings, check_relative_degree, relative_degree, uio_gain,
-                           uio_matrices)
+from observers.uio import (UIOFiniteTimeObserver, UIOSettings, check_generator, check_relative_degree,
+                           relative_degree, uio_gain, uio_matrices)
 from plants.uio import DisturbedLTVPlant
 
 from ..config import require_bounded_transient
@@ -83,9 +84,7 @@ def _plant_of(values: dict, context: Context) -> dict:
         raise ParameterError(f"plant: {name!r} is a component of kind {kind!r}; the observer needs an "
                              f"{PLANT_KIND} component defined before it")
     p = plant_arrays(plant_values)
-    if np.any(p["Gamma"]):
-        raise ParameterError(f"plant: {name!r} has Gamma != 0 (time-varying theta); this observer assumes "
-                             "constant feedback parameters, Gamma = 0 (docs/paper003.md, interpretation 7)")
+    check_generator(p["Gamma"], np.shape(p["H"])[1], f"components.{name}.Gamma")      # theta = H e^{Gamma t} xi(0)
     return p
 
 
@@ -178,11 +177,11 @@ def _define_observer(model_name: str, values: dict, context: Context) -> list:
     xi0_known = np.zeros(m) if values["xi0_known"] is None else values["xi0_known"]
     z0 = np.zeros(n) if values["z0"] is None else values["z0"]
     arguments = (plant["A"], plant["B"], plant["C"], r, L, plant["H"], B_bar, z0, xi0_free, xi0_known)
-    probe = UIOFiniteTimeObserver(*arguments, N, _settings(values))      # checks every value, names the field
+    probe = UIOFiniteTimeObserver(*arguments, N, _settings(values), plant["Gamma"])   # checks every value
     if designed:
         require_bounded_transient("poles", probe.design.F)
     definition = uio_observer_definition(model_name, *arguments, harmonics=N,
-                                         settings=_settings(values, _rates(values, probe)),
+                                         settings=_settings(values, _rates(values, probe)), Gamma=plant["Gamma"],
                                          description=values["description"])
     d = probe.design
     context.notes.append(f"{context.prefix.rstrip('.')}: r = {r}, G = {matrix_text(d.G)}, L = {matrix_text(L)}; "
@@ -191,11 +190,12 @@ def _define_observer(model_name: str, values: dict, context: Context) -> list:
 
 
 register("uio-ftdrem-observer", "Observer of paper 003 (unknown-input observer + finite-time DREM) for an "
-         f"`{PLANT_KIND}` component with Gamma = 0: from `y` alone, `x_tilde(0)` (stage 1), the free entries of "
+         f"`{PLANT_KIND}` component whose generator `Gamma` is bounded (zero: constant theta; e.g. a rotation "
+         "[[0, w], [-w, 0]]): from `y` alone, `x_tilde(0)` (stage 1), the free entries of "
          "`xi(0)` and the frequencies (stage 2), the amplitudes of `f` (stage 3), the state (stage 4). Designed from "
-         "the plant's A, B, C, H: give `poles` (eig(F)) or `L`. Input `y`; outputs `x_hat`, `x_tilde0_hat`, "
+         "the plant's A, B, C, H, Gamma: give `poles` (eig(F)) or `L`. Input `y`; outputs `x_hat`, `x_tilde0_hat`, "
          "`xi0_hat`, `theta_hat`, `omega_hat`, `f_hat`, `identified`, `t_identified`, `excitation`, `converged`.", (
-             Field("plant", "component", f"the {PLANT_KIND} component it observes (its A, B, C, H are known)",
+             Field("plant", "component", f"the {PLANT_KIND} component it observes (its A, B, C, H, Gamma are known)",
                    example='"plant"'),
              Field("r", "integer", "relative degree (absent: the plant's; given: checked, C A^k B = 0 for "
                    "k < r - 1 and rank C A^(r-1) B = rank B)", None, example="2"),

@@ -72,14 +72,20 @@ class IdentifiedPlantObserver:
         """``x_hat + Psi e_hat(t_0)``."""
         return self.x_hat + self.Psi @ self.drem.theta_hat
 
-    def advance(self, t: float, h: float, y0: float, dy: float, theta: np.ndarray,
+    def _closed_loop(self, theta: np.ndarray) -> np.ndarray:
+        return self.A + np.outer(self.B, theta) - np.outer(self.K, self.C)
+
+    def advance(self, t: float, h: float, y0: float, dy: float, theta: np.ndarray | Callable[[float], np.ndarray],
                 f_hat: Callable[[float], float], adapt: bool = True) -> None:
         """Step ``[t, t + h]`` with ``y(t + s) = y0 + s dy`` and the current identified model.
 
+        ``theta``: the identified parameters, or ``s -> theta_hat(s)`` for a time-varying ``theta``
+        (``H e^{Gamma s} xi0_hat``; then ``A + B theta^T - K C`` and ``Psi`` follow it inside the step).
         ``adapt=False`` keeps ``e_hat(t_0)`` (the stage is identified).
         """
         C = self.C
-        A_K = self.A + np.outer(self.B, theta) - np.outer(self.K, C)
+        varying = callable(theta)
+        A_K = self._closed_loop(theta(t) if varying else theta)
         rate = np.linalg.norm(A_K)                       # Frobenius: bounds |eig|, no SVD
         substeps = substep_count(h, rate=rate, max_change=0.01, budget=self.substep_budget)
         if adapt:
@@ -88,8 +94,9 @@ class IdentifiedPlantObserver:
 
         def rhs(s, state):
             x_hat, Psi = state[:n], state[n:].reshape(n, n)
-            dx = A_K @ x_hat + self.B * f_hat(s) + self.K * (y0 + (s - t) * dy)
-            return np.concatenate([dx, (A_K @ Psi).ravel()])
+            A_s = self._closed_loop(theta(s)) if varying else A_K
+            dx = A_s @ x_hat + self.B * f_hat(s) + self.K * (y0 + (s - t) * dy)
+            return np.concatenate([dx, (A_s @ Psi).ravel()])
 
         state = rk4_step(rhs, t, np.concatenate([self.x_hat, self.Psi.ravel()]), h, substeps)
         self.x_hat, self.Psi = state[:n], state[n:].reshape(n, n)

@@ -1,7 +1,9 @@
 r"""Observer of state and sinusoidal disturbance with finite-time DREM (paper 003) as a block.
 
-Plant (1): ``x' = A x + B [theta^T x + f]``, ``y = C x``, ``theta = H xi(0)``
-constant (``Gamma = 0``), ``f`` a sum of ``N`` sinusoids of unknown
+Plant (1): ``x' = A x + B [theta^T x + f]``, ``y = C x``, ``theta = H xi``,
+``xi' = Gamma xi`` (constant for ``Gamma = 0``, the paper's example; otherwise
+``theta(t) = H e^{Gamma t} xi(0)`` with a known bounded generator,
+:mod:`~observers.uio.generator`), ``f`` a sum of ``N`` sinusoids of unknown
 frequencies, amplitudes and phases, relative degree ``r``.  Only ``y`` is
 measured.  Four stages run side by side, each on its own finite-time DREM
 (:class:`~observers.estimation.FiniteTimeDREM`, eqs. (11)-(12), (18)-(19),
@@ -46,6 +48,7 @@ from observers.estimation import FilterBankExtension, FiniteTimeDREM
 from observers.integrators import DEFAULT_SUBSTEP_BUDGET, require_budget
 
 from .design import UIODesign
+from .generator import GeneratorFlow, check_generator
 from .harmonic import harmonic_regressor, undo_filter
 from .identified_plant import IdentifiedPlantObserver
 from .regressions import RegressionSignals, frequencies_from_annihilator
@@ -123,24 +126,31 @@ class UIOFiniteTimeObserver(Block):
     harmonics : int
         Number ``N`` of sinusoids in ``f`` (Assumption 1).
     settings : UIOSettings, optional
+    Gamma : (m, m) array_like, optional
+        The known generator ``xi' = Gamma xi`` (absent or zero: constant ``theta``).  ``e^{Gamma t}``
+        must be bounded (:func:`~observers.uio.generator.check_generator`); stage 2 then estimates
+        ``xi(0)`` and ``theta_hat(t) = H e^{Gamma t} xi0_hat``.
 
     Ports: input ``y``; outputs ``x_hat`` (n), ``x_tilde0_hat`` (n), ``xi0_hat`` (m),
-    ``theta_hat`` (n), ``omega_hat`` (N), ``f_hat`` (1), ``identified`` (4; per stage
+    ``theta_hat`` (n, at the output's time), ``omega_hat`` (N), ``f_hat`` (1), ``identified`` (4; per stage
     0 running, 1 identified, 2 stopped at the timeout without settling) and
     ``t_identified`` (4; the time, -1 before).
     """
 
     not_state = ("design", "H", "B_bar", "free", "xi0_known", "harmonics", "lambdas", "gamma", "mu", "normalize",
-                 "sizes", "rates", "signals", "_settle", "substep_budget", "converged_tolerance", "decay_rate")
+                 "sizes", "rates", "signals", "_settle", "substep_budget", "converged_tolerance", "decay_rate",
+                 "generator")
     state_optional = {"state_stage": "_blank_state_stage", "state_detector": "_blank_state_detector"}
 
     def __init__(self, A, B, C, r, L, H, B_bar, z0, xi0_free, xi0_known, harmonics=1,
-                 settings: UIOSettings | None = None):
+                 settings: UIOSettings | None = None, Gamma=None):
         s = settings or UIOSettings()
         self.design = d = UIODesign.create(A, B, C, r, L)
         n = d.n
         self.H = as_matrix("H", H, shape=(n, None))
         m = self.H.shape[1]
+        Gamma = np.zeros((m, m)) if Gamma is None else check_generator(Gamma, m)
+        self.generator = GeneratorFlow(Gamma) if np.any(Gamma) else None      # None: the paper's constant theta
         self.B_bar = as_vector("B_bar", B_bar, n)
         if abs(self.B_bar @ d.B - 1.0) > 1e-9:
             raise ParameterError(f"B_bar: B_bar B must be 1, got {self.B_bar @ d.B:.6g}")
@@ -166,7 +176,7 @@ class UIOFiniteTimeObserver(Block):
             raise ParameterError(f"rates: expected the extension rates of 4 stages, got {len(rates)}")
         self.rates = [as_vector(f"rates{k + 1}", rates[k], p - 1) for k, p in enumerate(self.sizes)]
         self.signals = RegressionSignals(d, self.H, self.B_bar, self.free, self.xi0_known, N, self.lambdas,
-                                         as_vector("z0", z0, n), s.filter_order)
+                                         as_vector("z0", z0, n), s.filter_order, self.generator)
         self.stage = [self._drem(k) for k in range(3)]
         self._settle = (s.settle_tol, s.settle_window, s.t_identify)
         self.converged_tolerance = require_positive("converged_tolerance", s.converged_tolerance)
@@ -200,7 +210,19 @@ class UIOFiniteTimeObserver(Block):
 
     @property
     def theta(self) -> np.ndarray:
+        """``H xi0_hat``: ``theta_hat`` for a constant ``theta``, ``theta_hat(0)`` otherwise."""
         return self.H @ self.xi0
+
+    def theta_at(self, t: float) -> np.ndarray:
+        """``theta_hat(t) = H e^{Gamma t} xi0_hat`` (``H xi0_hat`` for ``Gamma = 0``)."""
+        return self.theta if self.generator is None else self.H @ (self.generator(t) @ self.xi0)
+
+    def _theta_model(self):
+        """What stage 4 observes: ``theta_hat`` (constant) or ``s -> theta_hat(s)`` for the current ``xi0_hat``."""
+        if self.generator is None:
+            return self.theta
+        H, flow, xi0 = self.H, self.generator, self.xi0
+        return lambda s: H @ (flow(s) @ xi0)
 
     @property
     def omegas(self) -> np.ndarray:
@@ -241,6 +263,8 @@ class UIOFiniteTimeObserver(Block):
     def slowest_rate(self) -> float:
         """The slowest pole of the filters behind stages 2-4: filter and extension rates, ``eig(F)``."""
         rates = [*self.lambdas, *np.concatenate(self.rates), *-np.linalg.eigvals(self.design.F).real]
+        if self.generator is not None:                 # the modulated filters lambda I + Gamma^T of (14), (17)
+            rates += [lam + self.generator.slowest_decay for lam in self.lambdas[1:]]
         return float(min(rates))
 
     def _drems(self) -> list[FiniteTimeDREM | None]:
@@ -291,7 +315,7 @@ class UIOFiniteTimeObserver(Block):
             "x_hat": self.x_hat(),
             "x_tilde0_hat": self.x_tilde0.copy(),
             "xi0_hat": self.xi0,
-            "theta_hat": self.theta,
+            "theta_hat": self.theta_at(t),
             "omega_hat": self.omegas,
             "f_hat": np.array([self.f_hat(t)]),
             "identified": np.array([float(code) for code, _ in status]),
@@ -315,14 +339,15 @@ class UIOFiniteTimeObserver(Block):
             q1, m1 = self.signals.stage1(y0, w)
             self.stage[0].update(q1, m1, h)                                       # (11)-(12)
         if running[1] or running[2]:
-            stage2 = self.signals.stage2(y0, w, x_tilde0)
+            stage2 = self.signals.stage2(y0, w, x_tilde0, t)
             if running[1]:
                 self.stage[1].update(stage2["Y"], stage2["phi"], h)               # (18)-(19)
             if running[2]:
                 f_bar = stage2["q"] - stage2["s"] @ xi0                           # (20)
                 self.stage[2].update(f_bar, harmonic_regressor(t, omegas), h)     # (21)-(22)
         if self.state_stage is not None:
-            self.state_stage.advance(t, h, y0, dy, self.theta, self.disturbance_estimate(), adapt=running[3])
+            self.state_stage.advance(t, h, y0, dy, self._theta_model(), self.disturbance_estimate(),
+                                     adapt=running[3])
         self.w = self.signals.advance(w, h, y0, dy)
         self.y_last = y0 + h * dy
         self._watch(t + h)
@@ -340,7 +365,7 @@ class UIOFiniteTimeObserver(Block):
             return
         if self.state_stage is None:
             if stage2.done and stage3.done:
-                self.state_stage = self._state_stage(self.theta, self.x_hat())
+                self.state_stage = self._state_stage(self.theta_at(t), self.x_hat())
                 self.state_detector = SettlingDetector(*self._settle, start=t)
             return
         drem = self.state_stage.drem

@@ -8,7 +8,8 @@ times ``C`` is (see :mod:`~observers.uio.design`: ``C G_i = 0`` for ``i >= 1``)
 
 exact at every instant (zero filter states, constant ``k_1``).
 
-Stage 2, eqs. (13)-(17), for constant ``theta = H xi(0)`` (``Gamma = 0``).  With
+Stage 2, eqs. (13)-(17), for constant ``theta = H xi(0)`` (``Gamma = 0``; a known generator
+``Gamma != 0`` modulates the filters of ``s``, :meth:`RegressionSignals._modulated_rows`).  With
 ``z_bar = z + Phi x_tilde(0)`` the plant state is
 ``x = z_bar + sum_i G_i y^(i)`` (9); put it into (1) and multiply by ``B_bar``
 (``B_bar B = 1``), using ``z_bar' = F z_bar + L_tilde y``:
@@ -58,12 +59,14 @@ values before.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from math import comb
 
 import numpy as np
 
 from observers.checks import ParameterError
 
 from .design import UIODesign
+from .generator import GeneratorFlow
 from .signals import SignalModel
 
 __all__ = ["RegressionSignals", "annihilator_regression", "frequencies_from_annihilator"]
@@ -125,8 +128,9 @@ class RegressionSignals:
     """
 
     def __init__(self, design: UIODesign, H, B_bar, free, xi0_known, harmonics: int, lambdas, z0,
-                 order: int | None = None):
+                 order: int | None = None, generator: GeneratorFlow | None = None):
         d = design
+        self.generator = generator
         n = d.n
         self.free = np.asarray(free, dtype=bool)
         self.known = ~self.free
@@ -136,6 +140,8 @@ class RegressionSignals:
         self.order = order = d.r + 1 if order is None else int(order)
         if order < d.r:
             raise ParameterError(f"filter_order: the filter of (14) needs order >= r = {d.r}, got {order}")
+        if generator is not None:
+            _check_modulated_filters(generator, lam2, lam3)
 
         model = SignalModel()
         y = model.output()
@@ -152,29 +158,57 @@ class RegressionSignals:
         # stage 2, eqs. (14)-(17): y-path (component 0 only) and the z_bar-path per component
         y_derivatives = model.lowpass(model.output(), order, lam2)              # p^i F_2[y], i = 0..order
         components = [(z, True)] + [(column, False) for column in phi]
-        pieces = []
-        for z_bar, with_y in components:
-            z_f = model.lowpass(z_bar, order, lam2)[0]
-            q = (B_bar @ (d.F - d.A)) @ z_f
-            s = H.T @ z_f
-            if with_y:
-                q = q + sum(beta * model.pad(y_derivatives[i]) for i, beta in enumerate(_betas(d, B_bar)))
-                s = s + sum(np.outer(H.T @ d.G_i[i], model.pad(y_derivatives[i])[0]) for i in range(d.r))
-            q = np.atleast_2d(model.pad(q))
-            s = model.pad(s)
-            q_u = q - self.xi0_known[self.known] @ s[self.known]
-            annihilated = model.lowpass(np.vstack([q_u, s[self.free]]), 2 * self.layout.harmonics, lam3)
-            pieces.append((q, s, annihilated))
-
-        self._stage2 = np.stack([
-            np.vstack([model.pad(q), model.pad(s)] + [model.pad(a) for a in annihilated[::2]])
-            for q, s, annihilated in pieces
-        ])
+        self._rates = (lam2, lam3)
+        rows = self._constant_rows if generator is None else self._modulated_rows
+        pieces = [rows(model, d, H, B_bar, z_bar, y_derivatives if with_y else None) for z_bar, with_y in components]
+        self._stage2 = np.stack([np.vstack([model.pad(piece) for piece in readouts]) for readouts in pieces])
         self._zbar = np.stack([model.pad(z_bar) for z_bar, _ in components])
         self._q1, self._m1 = model.pad(self._q1), model.pad(self._m1)
         self.propagator = model.propagator()
         self.w0 = model.matrices()[2]
         self.size = model.size
+
+    def _filtered(self, model: SignalModel, d: UIODesign, B_bar, z_bar, y_derivatives):
+        """``F_2[z_bar]`` and ``q`` of (15) (the same for a constant and a time-varying ``theta``)."""
+        z_f = model.lowpass(z_bar, self.order, self._rates[0])[0]
+        q = (B_bar @ (d.F - d.A)) @ z_f
+        if y_derivatives is not None:
+            q = q + sum(beta * model.pad(y_derivatives[i]) for i, beta in enumerate(_betas(d, B_bar)))
+        return z_f, np.atleast_2d(model.pad(q))
+
+    def _constant_rows(self, model: SignalModel, d: UIODesign, H, B_bar, z_bar, y_derivatives):
+        """Read-outs of one component for ``Gamma = 0``: ``q``, ``s`` (15) and ``p^{2j} F_3[q_u, s_u]`` (17)."""
+        z_f, q = self._filtered(model, d, B_bar, z_bar, y_derivatives)
+        s = H.T @ z_f
+        if y_derivatives is not None:
+            s = s + sum(np.outer(H.T @ d.G_i[i], model.pad(y_derivatives[i])[0]) for i in range(d.r))
+        s = model.pad(s)
+        q_u = q - self.xi0_known[self.known] @ s[self.known]
+        annihilated = model.lowpass(np.vstack([q_u, s[self.free]]), 2 * self.layout.harmonics, self._rates[1])
+        return [q, s] + annihilated[::2]
+
+    def _modulated_rows(self, model: SignalModel, d: UIODesign, H, B_bar, z_bar, y_derivatives):
+        r"""Read-outs of one component for ``Gamma != 0`` (:mod:`~observers.uio.generator`).
+
+        ``s = F_2[e^{Gamma^T t} H^T x] = e^{Gamma^T t} sigma`` with ``sigma = F_2^Gamma[H^T x]``, the
+        filter modulated by ``S = Gamma^T`` (:meth:`SignalModel.lowpass`), and
+        ``p^{2j} F_3[s] = e^{Gamma^T t} (p + S)^{2j} F_3^Gamma[sigma]``: every filter stays LTI, ``e^{Gamma^T t}``
+        multiplies the read-outs (:meth:`stage2`).  The ``y^(i)`` of ``x = z_bar + sum_i G_i y^(i)`` come
+        from ``F_2^Gamma[u y^(i)] = p^i F_2^Gamma[u y]``, ``p^i = sum_l C(i, l) (-S)^(i-l) (p + S)^l``.
+        Rows: ``q``, ``sigma`` (m), ``p^{2j} F_3[q]`` (j = 0..N), ``(p + S)^{2j} F_3^Gamma[sigma]`` (m each).
+        """
+        S = self.generator.Gamma.T
+        order, N, (lam2, lam3) = self.order, self.layout.harmonics, self._rates
+        _, q = self._filtered(model, d, B_bar, z_bar, y_derivatives)
+        sigma = model.pad(model.lowpass(H.T @ model.pad(z_bar), order, lam2, shift=S)[0])
+        if y_derivatives is not None:
+            for i in range(d.r):
+                shifted = model.lowpass(np.outer(H.T @ d.G_i[i], model.output()[0]), order, lam2, shift=S)
+                sigma = model.pad(sigma) + _unshifted_derivative(shifted, S, i)
+        sigma = model.pad(sigma)
+        powers_q = model.lowpass(q, 2 * N, lam3)[::2]
+        powers_sigma = model.lowpass(sigma, 2 * N, lam3, shift=S)[::2]
+        return [q, sigma] + powers_q + powers_sigma
 
     # ------------------------------------------------------------------ evaluation
     @staticmethod
@@ -194,17 +228,45 @@ class RegressionSignals:
         """``z_bar = z_r + e^{F t} x_tilde(0)`` for the given estimate."""
         return _combine(self._zbar @ self._yw(y, w), x_tilde0)
 
-    def stage2(self, y: float, w: np.ndarray, x_tilde0: np.ndarray) -> dict[str, np.ndarray]:
-        """Signals of (15) and (17) for the estimate ``x_tilde0`` of ``x_tilde(0)``.
+    def stage2(self, y: float, w: np.ndarray, x_tilde0: np.ndarray, t: float = 0.0) -> dict[str, np.ndarray]:
+        """Signals of (15) and (17) at time ``t`` for the estimate ``x_tilde0`` of ``x_tilde(0)``.
 
-        Returns ``q`` (scalar), ``s`` (m), ``Y`` and ``phi`` of regression (17).
+        Returns ``q`` (scalar), ``s`` (m), ``Y`` and ``phi`` of regression (17).  ``t`` matters only
+        for a time-varying ``theta`` (``e^{Gamma^T t}``, :meth:`_modulated_rows`).
         """
         values = _combine(self._stage2 @ self._yw(y, w), x_tilde0)
         L = self.layout
+        if self.generator is not None:
+            return self._modulated_stage2(values, self.generator(t))
         q, s = values[0], values[1:1 + L.m]
         powers = values[1 + L.m:].reshape(L.harmonics + 1, 1 + L.m_u)       # row j: p^{2j} F_3[q_u, s_u]
         Y, phi = annihilator_regression(powers[:, 0], powers[:, 1:])
         return {"q": q, "s": s, "Y": Y, "phi": phi}
+
+    def _modulated_stage2(self, values: np.ndarray, flow: np.ndarray) -> dict[str, np.ndarray]:
+        """(15) and (17) from the rows of :meth:`_modulated_rows` and ``flow = e^{Gamma t}``."""
+        L = self.layout
+        m, count = L.m, L.harmonics + 1
+        q, s = values[0], flow.T @ values[1:1 + m]
+        P_q = values[1 + m:1 + m + count]
+        P_s = values[1 + m + count:].reshape(count, m) @ flow       # row j: (e^{Gamma^T t} (p + S)^{2j} F_3[sigma])^T
+        P_q_u = P_q - P_s[:, self.known] @ self.xi0_known[self.known]
+        Y, phi = annihilator_regression(P_q_u, P_s[:, self.free])
+        return {"q": q, "s": s, "Y": Y, "phi": phi}
+
+
+def _check_modulated_filters(generator: GeneratorFlow, *rates: float) -> None:
+    """The modulated filters ``lambda I + Gamma^T`` must be stable: ``Re eig(Gamma) > -lambda``."""
+    decay = generator.slowest_decay
+    for name, lam in zip(("lambda2", "lambda3"), rates):
+        if lam + decay <= 0:
+            raise ParameterError(f"{name}: {lam:g} <= -min Re eig(Gamma) = {-decay:g}; the filters of (14)/(17) "
+                                 f"modulated by e^(Gamma t) need Re eig(Gamma) > -{name} (raise {name})")
+
+
+def _unshifted_derivative(shifted: list[np.ndarray], S: np.ndarray, i: int) -> np.ndarray:
+    """``p^i eta`` from ``shifted[l] = (p + S)^l eta``: ``sum_l C(i, l) (-S)^(i-l) (p + S)^l eta``."""
+    return sum(comb(i, l) * np.linalg.matrix_power(-S, i - l) @ shifted[l] for l in range(i + 1))
 
 
 def _combine(values: np.ndarray, x_tilde0: np.ndarray) -> np.ndarray:

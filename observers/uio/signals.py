@@ -93,11 +93,17 @@ class SignalModel:
         readout[:, 1 + self.size - k:] = np.eye(k)
         return readout
 
-    def lowpass(self, signal, order: int, lam: float) -> list[np.ndarray]:
+    def lowpass(self, signal, order: int, lam: float, shift: np.ndarray | None = None) -> list[np.ndarray]:
         """Filter every row of ``signal`` with ``lam^order / (p + lam)^order``.
 
         Returns ``[F[u], p F[u], ..., p^order F[u]]`` as read-outs (one row per
         row of ``signal``); see :func:`lowpass_derivatives`.
+
+        With ``shift = S`` (a ``d x d`` matrix for the ``d`` rows) the *modulated* filter
+        ``lam^order (p I + lam I + S)^-order``: ``eta_j' = lam (eta_{j-1} - eta_j) - S eta_j``, and the
+        read-outs are ``(p + S)^j F[u]``.  It makes the filter of a modulated signal LTI:
+        ``F[e^{S t} u] = e^{S t} F_S[u]`` and ``p^j F[e^{S t} u] = e^{S t} (p + S)^j F_S[u]`` (zero initial
+        states; ``d/dt e^{S t} = S e^{S t}``).
         """
         signal = self.pad(signal)
         if order == 0:
@@ -106,7 +112,10 @@ class SignalModel:
         cascade = -lam * np.eye(order) + lam * np.eye(order, k=-1)       # eta_j' = lam (eta_{j-1} - eta_j)
         drive = np.zeros((order * d, signal.shape[1]))
         drive[:d] = lam * signal
-        states = self.add(np.kron(cascade, np.eye(d)), drive)
+        A_block = np.kron(cascade, np.eye(d))
+        if shift is not None:
+            A_block = A_block - np.kron(np.eye(order), shift)
+        states = self.add(A_block, drive)
         etas = [self.pad(signal)] + [states[j * d:(j + 1) * d] for j in range(order)]
         return lowpass_derivatives(etas, lam)
 

@@ -56,7 +56,7 @@ def _observer(p, options):
         substep_budget=p.get("substep_budget", DEFAULT_SUBSTEP_BUDGET),
         **dict(zip(("converged_tolerance", "decay_rate"), contract_values(p, UIO_CONTRACT))))
     return UIOFiniteTimeObserver(p["A"], p["B"], p["C"], _integer(p, "r"), p["L"], p["H"], p["B_bar"], p["z0"],
-                                 p["xi0_free"], p["xi0_known"], int(options["harmonics"]), settings)
+                                 p["xi0_free"], p["xi0_known"], int(options["harmonics"]), settings, Gamma=p["Gamma"])
 
 
 def _sines(name: str, value, text: str, unit=None) -> Parameter:
@@ -104,14 +104,17 @@ def ltv_plant_definition(model_name: str, A, B, C, H, Gamma, xi0, x0, amplitude,
 
 
 def uio_observer_definition(model_name: str, A, B, C, r, L, H, B_bar, z0, xi0_free, xi0_known, *,
-                            harmonics: int = 1, settings: UIOSettings | None = None,
+                            harmonics: int = 1, settings: UIOSettings | None = None, Gamma=None,
                             description: str = "") -> FmuDefinition:
-    """Observer FMU of paper 003 (kind ``uio-ftdrem-observer``); the block checks every value."""
+    """Observer FMU of paper 003 (kind ``uio-ftdrem-observer``); the block checks every value.
+
+    ``Gamma``: the known generator of ``theta`` (absent: zero, constant ``theta``)."""
     s = settings or UIOSettings()
     A = np.asarray(A, dtype=float)
     n, m = A.shape[0], np.asarray(H, dtype=float).shape[1]
     N = int(harmonics)
-    probe = UIOFiniteTimeObserver(A, B, C, r, L, H, B_bar, z0, xi0_free, xi0_known, N, s)   # fails early
+    Gamma = np.zeros((m, m)) if Gamma is None else Gamma
+    probe = UIOFiniteTimeObserver(A, B, C, r, L, H, B_bar, z0, xi0_free, xi0_known, N, s, Gamma)   # fails early
     return FmuDefinition(
         model_name=model_name,
         kind="uio-ftdrem-observer",
@@ -123,7 +126,8 @@ def uio_observer_definition(model_name: str, A, B, C, r, L, H, B_bar, z0, xi0_fr
             Parameter.of("C", np.reshape(C, (1, n)), "plant output row", drop_axes=(0,)),
             Parameter.scalar("r", r, "relative degree (C A^k B = 0 for k < r - 1, rank C A^(r-1) B = rank B)"),
             Parameter.of("L", np.reshape(L, (n, 1)), "gain of (2): F = M - L C must be Hurwitz", drop_axes=(1,)),
-            Parameter.of("H", np.reshape(H, (n, m)), "theta = H xi (Gamma = 0)"),
+            Parameter.of("H", np.reshape(H, (n, m)), "theta = H xi"),
+            Parameter.of("Gamma", np.reshape(Gamma, (m, m)), "known generator xi' = Gamma xi (0: constant theta)"),
             Parameter.of("B_bar", np.reshape(B_bar, (1, n)), "row with B_bar B = 1 (row of (16))", drop_axes=(0,)),
             Parameter.of("z0", z0, "initial state z_r(0) of the chain (7)"),
             Parameter.of("xi0_free", xi0_free, "1: estimate this entry of xi(0), 0: known"),
@@ -149,7 +153,7 @@ def uio_observer_definition(model_name: str, A, B, C, r, L, H, B_bar, z0, xi0_fr
             Port("x_hat", n, "state estimate"),
             Port("x_tilde0_hat", n, "stage 1: estimate of x_tilde(0), the initial error of the UIO (8)"),
             Port("xi0_hat", m, "stage 2: estimate of xi(0)"),
-            Port("theta_hat", n, "estimate of theta = H xi(0)"),
+            Port("theta_hat", n, "estimate of theta = H e^(Gamma t) xi(0)"),
             Port("omega_hat", N, "stage 2: frequencies of f", "rad/s", scalar=N == 1),
             Port("f_hat", 1, "stage 3: disturbance estimate, (23)", scalar=True),
             Port("identified", 4, "per stage (x_tilde0, xi0/omega, amplitudes, state): 0 running, "

@@ -47,9 +47,21 @@ REFUSED = {
                           "components.observer.harmonics: the frequencies of 'plant' [1.0, 1.0] are not distinct"),
     "no sinusoid": (changed("omega = [1.0]\nphase = [0.0]", "omega = []\nphase = []", "amplitude = [5.0]",
                             "amplitude = []"), "components.plant.amplitude: no sinusoid; f is a sum of N >= 1"),
-    "time-varying theta": (changed("Gamma = [[0.0, 0.0], [0.0, 0.0]]", "Gamma = [[0.0, 1.0], [-1.0, 0.0]]"),
-                           "components.observer.plant: 'plant' has Gamma != 0 (time-varying theta); this observer "
-                           "assumes constant feedback parameters"),
+    "growing generator": (changed("Gamma = [[0.0, 0.0], [0.0, 0.0]]", "Gamma = [[0.1, 0.0], [0.0, 0.0]]"),
+                          "components.plant.Gamma: eigenvalue 0.1 has Re > 0, e^(components.plant.Gamma t) and "
+                          "theta grow without bound; the observer needs a bounded generator"),
+    "growing rotation": (changed("Gamma = [[0.0, 0.0], [0.0, 0.0]]", "Gamma = [[0.01, 1.0], [-1.0, 0.0]]"),
+                         "components.plant.Gamma: eigenvalue 0.005+0.999987j has Re > 0"),
+    "Jordan block on the imaginary axis": (
+        changed("Gamma = [[0.0, 0.0], [0.0, 0.0]]", "Gamma = [[0.0, 1.0], [0.0, 0.0]]"),
+        "components.plant.Gamma: eigenvalue 0 on the imaginary axis is not semisimple (multiplicity 2, 1 "
+        "eigenvector(s)): e^(components.plant.Gamma t) grows like t^1"),
+    "generator decaying faster than the filters": (
+        changed("Gamma = [[0.0, 0.0], [0.0, 0.0]]", "Gamma = [[-20.0, 0.0], [0.0, 0.0]]"),
+        "components.observer.lambda2: 10 <= -min Re eig(Gamma) = 20; the filters of (14)/(17) modulated by "
+        "e^(Gamma t) need Re eig(Gamma) > -lambda2"),
+    "generator of the wrong size": (changed("Gamma = [[0.0, 0.0], [0.0, 0.0]]", "Gamma = [[0.0]]"),
+                                    "components.plant.Gamma: expected 2 rows"),
     "B_bar B != 1": (changed("B_bar = [1.0, 1.0]", "B_bar = [1.0, 2.0]"),
                      "components.observer.B_bar: B_bar B must be 1, got 2"),
     "input vector of the wrong size": (changed("B = [0.0, 1.0]", "B = [0.0, 1.0, 0.0]"),
@@ -158,3 +170,13 @@ def test_a_plant_with_a_stable_zero_places_only_the_observable_poles():
     spec = parse_system(text, "uio.toml")
     eigenvalues = spec.notes[0].rpartition("eig(F) = [")[2]
     assert sorted(float(v) for v in eigenvalues.rstrip("]").split(", ")) == pytest.approx([-1.0, -0.5, -0.3])
+
+
+def test_a_bounded_generator_is_accepted_and_handed_to_the_observer():
+    """theta = H e^{Gamma t} xi(0) with a rotation (eigenvalues +-0.5j, semisimple) and a decaying mode: both
+    accepted; the observer FMU gets the plant's Gamma (it builds the modulated filters from it)."""
+    for Gamma in ([[0.0, 0.5], [-0.5, 0.0]], [[-0.5, 1.0], [0.0, -0.5]]):    # the second: a stable Jordan block
+        text = changed("Gamma = [[0.0, 0.0], [0.0, 0.0]]", f"Gamma = {Gamma}")
+        parameters = _observer_parameters(parse_system(text, "uio.toml"))
+        np.testing.assert_array_equal(parameters["Gamma"], np.ravel(Gamma))
+    np.testing.assert_array_equal(_observer_parameters(parse_system(PAPER, "uio.toml"))["Gamma"], np.zeros(4))

@@ -9,10 +9,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy.linalg import expm as scipy_expm
 
 from observers.block import Segment
 from observers.checks import ParameterError, SignalError
-from observers.uio import UIODesign, UIOFiniteTimeObserver, UIOSettings, check_relative_degree, uio_gain
+from observers.uio import (GeneratorFlow, UIODesign, UIOFiniteTimeObserver, UIOSettings, check_generator,
+                           check_relative_degree, uio_gain)
 from observers.uio.harmonic import undo_filter
 from observers.uio.regressions import RegressionSignals, frequencies_from_annihilator
 from observers.uio.settling import SETTLED, TIMED_OUT, SettlingDetector
@@ -112,6 +114,9 @@ def test_relative_degree_lower_than_claimed_is_refused():
     (dict(settings=UIOSettings(rates=[[10.0], [10.0], [10.0], [10.0]])), r"rates2: expected 2 entries"),
     (dict(settings=UIOSettings(filter_order=1)), r"filter_order: the filter of \(14\) needs order >= r = 2"),
     (dict(settings=UIOSettings(lambdas=(10.0, -1.0, 10.0))), r"lambda2: must be > 0"),
+    (dict(Gamma=[[0.0, 1.0], [0.0, 0.0]]), r"Gamma: eigenvalue 0 on the imaginary axis is not semisimple"),
+    (dict(Gamma=[[-1.0, 0.0], [0.0, 0.0]], settings=UIOSettings(lambdas=(10.0, 10.0, 0.5))),
+     r"lambda3: 0.5 <= -min Re eig\(Gamma\) = 1"),
 ])
 def test_bad_configuration_is_refused_naming_the_parameter(change, message):
     with pytest.raises(ParameterError, match=message):
@@ -146,11 +151,14 @@ def test_filtered_derivatives_of_a_sine_match_the_frequency_response():
     assert abs(model.pad(readouts[3])[0] @ yw - exact) == pytest.approx(bias, rel=0.1)
 
 
-def regression_residuals(filter_order, T=12.0, h=H_STEP):
-    """Residuals of (10), (15) and (17) with the TRUE x_tilde(0), xi(0), omega and f."""
-    observer = paper_observer(settings=UIOSettings(filter_order=filter_order))
+def regression_residuals(filter_order, T=12.0, h=H_STEP, xi0=XI0, unknowns=(-1.0, 1.0, -1.0), generator=None):
+    """Residuals of (10), (15) and (17) with the TRUE x_tilde(0), xi(0), omega and f (``unknowns`` of (17));
+    ``generator = (H, Gamma)``: a time-varying theta, every entry of ``xi(0)`` unknown."""
+    plant_changes = {} if generator is None else dict(H=generator[0], Gamma=generator[1])
+    unknown = {} if generator is None else dict(xi0_free=np.ones(len(xi0)), xi0_known=np.zeros(len(xi0)))
+    observer = paper_observer(settings=UIOSettings(filter_order=filter_order), **plant_changes, **unknown)
     signals: RegressionSignals = observer.signals
-    plant = paper_plant()
+    plant = paper_plant(xi0=xi0, **plant_changes)
     order = signals.order
     f_bar_gain = (10.0 / (1j + 10.0)) ** order          # steady state of F_2[5 sin t]
     w = signals.w0.copy()
@@ -159,10 +167,10 @@ def regression_residuals(filter_order, T=12.0, h=H_STEP):
         t = k * h
         y0 = plant.outputs(t, {})["y"][0]
         q1, m1 = signals.stage1(y0, w)
-        stage2 = signals.stage2(y0, w, X_TILDE0)
+        stage2 = signals.stage2(y0, w, X_TILDE0, t)
         f_bar = np.imag(5.0 * f_bar_gain * np.exp(1j * t))
-        rows.append([t, q1 - m1 @ X_TILDE0, stage2["q"] - stage2["s"] @ XI0 - f_bar,
-                     stage2["Y"] - stage2["phi"] @ [-1.0, 1.0, -1.0]])
+        rows.append([t, q1 - m1 @ X_TILDE0, stage2["q"] - stage2["s"] @ xi0 - f_bar,
+                     stage2["Y"] - stage2["phi"] @ np.asarray(unknowns)])
         plant.advance(t, h, {})
         y1 = plant.outputs(t + h, {})["y"][0]
         w = signals.advance(w, h, y0, (y1 - y0) / h)
@@ -180,6 +188,34 @@ def test_regressions_hold_for_the_true_plant_and_decay_to_exact():
     assert np.max(np.abs(rows[late, 3])) < 1e-7
     early = (t > 0.5) & (t < 1.0)
     assert np.max(np.abs(rows[early, 3])) > 1.0                   # ... but far from exact early: 254
+
+
+def test_regressions_hold_with_a_time_varying_theta_of_known_generator():
+    """theta_2(t) = xi_1 + xi_2(t) = -1 + 0.3 cos(0.5 t): xi_1 constant, (xi_2, xi_3) rotating at 0.5 rad/s
+    (Gamma != 0), xi(0) = [-1, 0.3, 0] unknown: (15) and (17) with s = F_2[e^{Gamma^T t} H^T x] built from the
+    modulated filters hold as for a constant theta (unknowns [xi(0), omega^2, omega^2 xi(0)])."""
+    Gamma = [[0.0, 0.0, 0.0], [0.0, 0.0, 0.5], [0.0, -0.5, 0.0]]
+    rows = regression_residuals(None, xi0=[-1.0, 0.3, 0.0], unknowns=(-1.0, 0.3, 0.0, 1.0, -1.0, 0.3, 0.0),
+                                generator=([[0.0, 0.0, 0.0], [1.0, 1.0, 0.0]], Gamma))
+    t = rows[:, 0]
+    assert np.max(np.abs(rows[:, 1])) < 1e-12                     # (10) does not see theta
+    late = t >= 6.0
+    assert np.max(np.abs(rows[late, 2])) < 1e-6                   # 4.6e-7
+    assert np.max(np.abs(rows[late, 3])) < 1e-6                   # 1.1e-7
+    early = (t > 0.5) & (t < 1.0)
+    assert np.max(np.abs(rows[early, 3])) > 1.0                   # filter transients early: 260
+
+
+@pytest.mark.parametrize("Gamma", [
+    [[0.0, 0.5], [-0.5, 0.0]],                                    # a rotation: unitary eigenbasis
+    [[-0.5, 1.0], [0.0, -0.5]],                                   # a stable Jordan block: expm
+    [[0.0, 0.0, 0.0], [0.0, 0.0, 2.0], [0.0, -2.0, -0.1]],        # a constant and a damped rotation
+])
+def test_the_generator_flow_is_the_matrix_exponential(Gamma):
+    flow = GeneratorFlow(check_generator(Gamma, len(Gamma)))
+    for t in (0.0, 0.37, 12.5, 1e3):
+        # scipy's scaling and squaring loses ~1e-15 |Gamma t| (at t = 1e3 the flow is the closer to cos(500))
+        np.testing.assert_allclose(flow(t), scipy_expm(np.asarray(Gamma) * t), rtol=0, atol=1e-14 * (1 + 2 * t))
 
 
 def test_paper_filter_order_leaves_a_sampling_bias_that_order_r_plus_1_removes():
