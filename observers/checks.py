@@ -13,6 +13,8 @@ apart:
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 __all__ = [
@@ -22,6 +24,8 @@ __all__ = [
     "as_matrix",
     "require_square",
     "require_hurwitz",
+    "UnboundedMode",
+    "unbounded_mode",
     "require_positive",
     "finite_signal",
 ]
@@ -96,6 +100,39 @@ def require_hurwitz(name: str, matrix: np.ndarray, margin: float = 0.0) -> np.nd
             f"(eigenvalues {np.round(eigenvalues, 6).tolist()})"
         )
     return matrix
+
+
+class UnboundedMode(NamedTuple):
+    """An eigenvalue of ``M`` whose mode of ``x' = M x`` grows: ``Re > 0`` (``growing``), or on the imaginary
+    axis with fewer eigenvectors (``geometric``) than its multiplicity (``algebraic``): ``t^k`` growth."""
+
+    value: complex
+    growing: bool
+    algebraic: int = 1
+    geometric: int = 1
+
+
+def unbounded_mode(matrix: np.ndarray, tolerance: float = 1e-9) -> UnboundedMode | None:
+    """The mode of ``x' = matrix x`` that is unbounded for ``t >= 0``, or None (every solution bounded).
+
+    Bounded (marginally stable): every eigenvalue has ``Re < 0``, or ``Re = 0`` and is semisimple (no
+    Jordan block).  ``Re`` is zero within ``tolerance * max(1, max |matrix|)``; eigenvalues within 1e3 times
+    that are one, and the geometric multiplicity counts the singular values of ``matrix - lambda I``
+    below it.  For a growing mode the eigenvalue of largest real part is returned.
+    """
+    eigenvalues = np.linalg.eigvals(matrix)
+    scale = tolerance * max(1.0, float(np.abs(matrix).max(initial=0.0)))
+    worst = eigenvalues[np.argmax(eigenvalues.real)]
+    if worst.real > scale:
+        return UnboundedMode(worst, True)
+    n = matrix.shape[0]
+    for value in eigenvalues[np.abs(eigenvalues.real) <= scale]:
+        algebraic = int(np.sum(np.abs(eigenvalues - value) <= 1e3 * scale))
+        singular = np.linalg.svd(matrix - value * np.eye(n), compute_uv=False)
+        geometric = int(np.sum(singular <= 1e3 * scale))
+        if geometric < algebraic:
+            return UnboundedMode(value, False, algebraic, geometric)
+    return None
 
 
 def require_positive(name: str, value, allow_zero: bool = False) -> float:

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..checks import ParameterError
+from ..checks import ParameterError, unbounded_mode
 
 __all__ = ["require_assumptions", "DEFAULT_TIMES"]
 
@@ -48,19 +48,14 @@ def _unstable(worst: complex, where: str) -> ParameterError:
 
 def _require_stable_constant(A0: np.ndarray, tolerance: float) -> None:
     """The exact test for a constant ``A0``: Re < 0, or Re = 0 and semisimple."""
-    eigenvalues = np.linalg.eigvals(A0)
-    scale = tolerance * max(1.0, np.abs(A0).max())
-    worst = eigenvalues[np.argmax(eigenvalues.real)]
-    if worst.real > scale:
-        raise _unstable(worst, "(A0 is constant)")
-    n = A0.shape[0]
-    for value in eigenvalues[np.abs(eigenvalues.real) <= scale]:
-        multiplicity = int(np.sum(np.abs(eigenvalues - value) <= 1e3 * scale))
-        rank = np.linalg.matrix_rank(A0 - value * np.eye(n), tol=1e3 * scale)
-        if n - rank < multiplicity:
-            raise ParameterError(f"L: A0 = A - L C^T is constant with the eigenvalue {value:.6g} on the imaginary "
-                                 f"axis {multiplicity} times but a Jordan block (solutions grow like t): not uniformly "
-                                 "stable (paper 001, Assumptions 3-4)")
+    mode = unbounded_mode(A0, tolerance)
+    if mode is None:
+        return
+    if mode.growing:
+        raise _unstable(mode.value, "(A0 is constant)")
+    raise ParameterError(f"L: A0 = A - L C^T is constant with the eigenvalue {mode.value:.6g} on the imaginary "
+                         f"axis {mode.algebraic} times but a Jordan block (solutions grow like t): not uniformly "
+                         "stable (paper 001, Assumptions 3-4)")
 
 
 def require_assumptions(A, L, C, times=DEFAULT_TIMES, tolerance: float = 1e-9) -> str:
