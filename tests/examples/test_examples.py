@@ -11,10 +11,7 @@ and its noisy run's error statistics against the observer's noise gain (a discre
 
 from __future__ import annotations
 
-import os
 import re
-import subprocess
-import sys
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
@@ -25,7 +22,8 @@ from scipy.integrate import solve_ivp
 from scipy.linalg import expm, solve_discrete_lyapunov
 from scipy.signal import place_poles
 
-ROOT = Path(__file__).resolve().parents[2]
+from examples_support import ROOT, columns, obsfmu, run_config, stays_below
+
 EXAMPLES = ROOT / "examples"
 _SUMMARY = re.compile(r"^(\S+) vs (\S+): final \|error\| (\S+)(?: \S+)?, below (\S+) from (.+)$")
 
@@ -41,7 +39,7 @@ class Run:
 
     def block(self, port: str, n: int) -> np.ndarray:
         """The columns ``port[1] .. port[n]`` side by side."""
-        return np.column_stack([self.columns[f"{port}[{i}]"] for i in range(1, n + 1)])
+        return columns(self.columns, port, n)
 
     def convergence(self, estimate: str) -> float:
         """The summary's convergence time of ``estimate`` (inf: "not reached")."""
@@ -57,21 +55,11 @@ def config(name: str) -> dict:
         return tomllib.load(file)
 
 
-def obsfmu(*args, cwd: Path) -> subprocess.CompletedProcess:
-    environment = {**os.environ, "PYTHONPATH": str(ROOT)}
-    return subprocess.run([sys.executable, "-m", "fmus.cli", *map(str, args)], cwd=cwd, env=environment,
-                          capture_output=True, text=True, timeout=900)
-
-
 def run_example(name: str, folder: Path, build: Path, *options: str, tag: str = "") -> Run:
     """``obsfmu run --config examples/NAME.toml --csv ...`` with ``options``; its summary and CSV."""
-    csv = folder / f"{name}{tag}.csv"
-    done = obsfmu("run", "--config", EXAMPLES / f"{name}.toml", "--csv", csv, "--build-dir", build, *options,
-                  cwd=folder)
-    assert done.returncode == 0, done.stderr
-    header = csv.read_text().split("\n", 1)[0].split(",")
-    data = np.loadtxt(csv, delimiter=",", skiprows=1)
-    return Run(done.stdout, data[:, 0], {column: data[:, j] for j, column in enumerate(header)})
+    data, stdout = run_config(EXAMPLES / f"{name}.toml", folder / f"{name}{tag}.csv", "--build-dir", build, *options,
+                              cwd=folder)
+    return Run(stdout, data["time"], data)
 
 
 def solve(rhs, z0, times: np.ndarray, breaks=()) -> np.ndarray:
@@ -86,14 +74,6 @@ def solve(rhs, z0, times: np.ndarray, breaks=()) -> np.ndarray:
         rows.append(piece.y.T[np.isin(evaluated, inside)])
         z = piece.y[:, -1]
     return np.vstack(rows)
-
-
-def stays_below(time: np.ndarray, error: np.ndarray, tolerance: float) -> float:
-    """The first time from which ``|error| < tolerance`` at every later row (inf if never)."""
-    above = np.nonzero(np.abs(error) >= tolerance)[0]
-    if not above.size:
-        return float(time[0])
-    return float("inf") if above[-1] == len(time) - 1 else float(time[above[-1] + 1])
 
 
 def deviation(run: np.ndarray, reference: np.ndarray) -> np.ndarray:

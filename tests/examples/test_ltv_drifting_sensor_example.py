@@ -9,16 +9,13 @@ fmus/.  One ODE of 94 states, DOP853 at rtol 1e-10.
 """
 
 import math
-import os
-import subprocess
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-ROOT = Path(__file__).resolve().parents[2]
+from examples_support import ROOT, columns, run_config
+
 EXAMPLE = ROOT / "examples" / "ltv_drifting_sensor.toml"
 STOP = 18.0
 MASS, DAMPING, STIFFNESS, QUADRATIC, CUBIC = 1.0, 0.6, 4.0, 0.8, 0.5
@@ -82,16 +79,8 @@ def reference(times):
 @pytest.fixture(scope="module")
 def run(tmp_path_factory):
     tmp_path = tmp_path_factory.mktemp("ltv_drifting")
-    csv = tmp_path / "run.csv"
-    done = subprocess.run([sys.executable, "-m", "fmus.cli", "run", "--config", str(EXAMPLE), "--stop-time", str(STOP),
-                           "--csv", str(csv), "--build-dir", str(tmp_path / "fmus")], cwd=tmp_path,
-                          env={**os.environ, "PYTHONPATH": str(ROOT)}, capture_output=True, text=True, timeout=900)
-    assert done.returncode == 0, done.stdout + done.stderr
-    return np.genfromtxt(csv, delimiter=",", names=True, deletechars=""), done.stdout
-
-
-def columns(data, name, count):
-    return np.column_stack([data[f"{name}[{i}]"] for i in range(1, count + 1)])
+    return run_config(EXAMPLE, tmp_path / "run.csv", "--stop-time", STOP, "--build-dir", tmp_path / "fmus",
+                      cwd=tmp_path)
 
 
 def test_the_cosimulation_agrees_with_the_scipy_reference(run):

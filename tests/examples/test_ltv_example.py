@@ -7,16 +7,13 @@ nothing of observers/, plants/ or fmus/.  One ODE of 36 states, DOP853 at rtol 1
 """
 
 import math
-import os
-import subprocess
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-ROOT = Path(__file__).resolve().parents[2]
+from examples_support import ROOT, columns, run_config
+
 EXAMPLE = ROOT / "examples" / "ltv_mass_spring_damper.toml"
 STOP = 12.0
 MASS, DAMPING, STIFFNESS, HARDENING = 1.0, 0.6, 4.0, 0.5
@@ -69,17 +66,8 @@ def reference(times):
 
 
 def obsfmu_run(tmp_path, name, *options):
-    csv = tmp_path / f"{name}.csv"
-    done = subprocess.run([sys.executable, "-m", "fmus.cli", "run", "--config", str(EXAMPLE), "--stop-time", str(STOP),
-                           "--csv", str(csv), "--build-dir", str(tmp_path / "fmus"), *options], cwd=tmp_path,
-                          env={**os.environ, "PYTHONPATH": str(ROOT)}, capture_output=True, text=True, timeout=900)
-    assert done.returncode == 0, done.stdout + done.stderr
-    data = np.genfromtxt(csv, delimiter=",", names=True, deletechars="")
-    return data, done.stdout
-
-
-def columns(data, name, count):
-    return np.column_stack([data[f"{name}[{i}]"] for i in range(1, count + 1)])
+    return run_config(EXAMPLE, tmp_path / f"{name}.csv", "--stop-time", STOP, "--build-dir", tmp_path / "fmus", *options,
+                      cwd=tmp_path)
 
 
 @pytest.fixture(scope="module")

@@ -10,15 +10,14 @@ project.  Also: the ``converged`` flag contract and a small noisy run.
 
 from __future__ import annotations
 
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-ROOT = Path(__file__).resolve().parents[2]
+from examples_support import ROOT, columns, run_config, stays_below
+
 EXAMPLE = ROOT / "examples" / "state_affine_vanderpol.toml"
 TRUE_M, TRUE_A = 1.0, 2.0          # the file's plant parameters
 X0 = (2.0, 0.0)
@@ -108,25 +107,10 @@ def reference(times: np.ndarray, m: float = TRUE_M, a: float = TRUE_A) -> dict[s
 
 # ----------------------------------------------------------------------------- the co-simulation
 def _run(build_dir: Path, csv: Path, *settings: str) -> dict[str, np.ndarray]:
-    command = [sys.executable, "-m", "fmus.cli", "run", "--config", str(EXAMPLE), "--build-dir", str(build_dir),
-               "--csv", str(csv), *[item for s in settings for item in ("--set", s)]]
-    done = subprocess.run(command, cwd=ROOT, capture_output=True, text=True, timeout=600)
-    assert done.returncode == 0, done.stderr
-    names = csv.read_text().split("\n", 1)[0].split(",")
-    data = np.loadtxt(csv, delimiter=",", skiprows=1)
-    column = {name: data[:, i] for i, name in enumerate(names)}
-    return {"time": column["time"], "x": np.column_stack([column["plant.x[1]"], column["plant.x[2]"]]),
-            "x_hat": np.column_stack([column["observer.x_hat[1]"], column["observer.x_hat[2]"]]),
-            "theta_hat": np.column_stack([column["observer.theta_hat[1]"], column["observer.theta_hat[2]"]]),
-            "converged": column["observer.converged"], "summary": done.stdout}
-
-
-def _stays_below(time: np.ndarray, error: np.ndarray, tolerance: float) -> float:
-    """The first time from which every |error| stays below ``tolerance`` (inf: never)."""
-    above = np.nonzero(np.abs(error).reshape(time.size, -1).max(axis=1) >= tolerance)[0]
-    if above.size == 0:
-        return float(time[0])
-    return float(time[above[-1] + 1]) if above[-1] + 1 < time.size else float("inf")
+    column, summary = run_config(EXAMPLE, csv, "--build-dir", build_dir, *[f"--set={s}" for s in settings])
+    return {"time": column["time"], "x": columns(column, "plant.x", 2), "x_hat": columns(column, "observer.x_hat", 2),
+            "theta_hat": columns(column, "observer.theta_hat", 2), "converged": column["observer.converged"],
+            "summary": summary}
 
 
 @pytest.fixture(scope="session")
@@ -143,9 +127,9 @@ def test_the_reference_itself_converges(monolithic, cosim):
     """The monolithic solution finds m, a and the state (a check of the reference, not of the code)."""
     assert np.abs(monolithic["theta_hat"][-1] - [TRUE_M, TRUE_A]).max() < 1e-8
     assert np.abs(monolithic["x_hat"][-1] - monolithic["x"][-1]).max() < 1e-8
-    print("reference: theta within 1e-3 from", _stays_below(cosim["time"], monolithic["theta_hat"] - [TRUE_M, TRUE_A],
+    print("reference: theta within 1e-3 from", stays_below(cosim["time"], monolithic["theta_hat"] - [TRUE_M, TRUE_A],
                                                               TOLERANCE),
-          "s; x from", _stays_below(cosim["time"], monolithic["x_hat"] - monolithic["x"], TOLERANCE), "s")
+          "s; x from", stays_below(cosim["time"], monolithic["x_hat"] - monolithic["x"], TOLERANCE), "s")
 
 
 def test_cosimulation_agrees_with_the_reference(cosim, monolithic):
@@ -159,8 +143,8 @@ def test_cosimulation_agrees_with_the_reference(cosim, monolithic):
 def test_convergence_time_and_final_error(cosim):
     theta_error = cosim["theta_hat"] - [TRUE_M, TRUE_A]
     x_error = cosim["x_hat"] - cosim["x"]
-    times = {"theta": _stays_below(cosim["time"], theta_error, TOLERANCE),
-             "x": _stays_below(cosim["time"], x_error, TOLERANCE)}
+    times = {"theta": stays_below(cosim["time"], theta_error, TOLERANCE),
+             "x": stays_below(cosim["time"], x_error, TOLERANCE)}
     final = {"theta": float(np.abs(theta_error[-1]).max()), "x": float(np.abs(x_error[-1]).max())}
     print("times to 1e-3:", times, "final errors:", final)
     assert times["theta"] < 1.5 and times["x"] < 2.0          # measured 1.13 s, 1.54 s
@@ -173,7 +157,7 @@ def test_converged_flag_is_never_early(cosim):
     flagged = np.nonzero(cosim["converged"] == 1.0)[0]
     assert flagged.size and np.all(cosim["converged"][flagged[0]:] == 1.0)
     assert theta_error[flagged].max() <= TOLERANCE
-    lag = float(cosim["time"][flagged[0]]) - _stays_below(cosim["time"], theta_error, TOLERANCE)
+    lag = float(cosim["time"][flagged[0]]) - stays_below(cosim["time"], theta_error, TOLERANCE)
     print("converged at", cosim["time"][flagged[0]], "s; lag after the true convergence", lag, "s")
     assert 0.0 <= lag < 1.0                        # measured 0.43 s
 

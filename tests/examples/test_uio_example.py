@@ -11,9 +11,6 @@ Numbers in comments: measured (step 1e-3 s, Gauss-Seidel, linear coupling; docs/
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -23,7 +20,7 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.signal import place_poles
 
-ROOT = Path(__file__).resolve().parents[2]
+from examples_support import ROOT, columns, run_config, stays_below
 
 # the example's plant and tuning, written again here (the reference shares nothing with the file's reader)
 A = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [-2.0, -3.0, -1.0]])
@@ -74,26 +71,8 @@ def true_x_tilde0() -> np.ndarray:
     return X0 - x_hat0
 
 
-def obsfmu(*args, cwd: Path) -> subprocess.CompletedProcess:
-    environment = {**os.environ, "PYTHONPATH": str(ROOT)}
-    return subprocess.run([sys.executable, "-m", "fmus.cli", *map(str, args)], cwd=cwd, env=environment,
-                          capture_output=True, text=True, timeout=900)
-
-
-def read_csv(path: Path) -> dict[str, np.ndarray]:
-    header = path.read_text().split("\n", 1)[0].split(",")
-    data = np.loadtxt(path, delimiter=",", skiprows=1)
-    return {name: data[:, j] for j, name in enumerate(header)}
-
-
-def columns(run: dict, name: str, size: int) -> np.ndarray:
-    return np.column_stack([run[f"{name}[{i}]"] for i in range(1, size + 1)])
-
-
 def run_example(folder: Path, build: Path, *settings: str, example: Example = THIRD_ORDER) -> dict[str, np.ndarray]:
-    done = obsfmu("run", "--config", example.path, "--csv", "out.csv", "--build-dir", build, *settings, cwd=folder)
-    assert done.returncode == 0, done.stderr
-    return read_csv(folder / "out.csv")
+    return run_config(example.path, "out.csv", "--build-dir", build, *settings, cwd=folder)[0]
 
 
 def errors(run: dict, example: Example = THIRD_ORDER) -> dict[str, np.ndarray]:
@@ -106,14 +85,6 @@ def errors(run: dict, example: Example = THIRD_ORDER) -> dict[str, np.ndarray]:
             "f": np.abs(run["observer.f_hat"] - disturbance(run["time"])),
             "x": np.linalg.norm(columns(run, "observer.x_hat", 3) - x, axis=1) / (1 + np.linalg.norm(x, axis=1)),
             "x_tilde0": np.abs(columns(run, "observer.x_tilde0_hat", 3) - true_x_tilde0()).max(axis=1)}
-
-
-def stays_below(time: np.ndarray, error: np.ndarray, tolerance: float) -> float:
-    """First time from which ``error`` stays below ``tolerance`` (inf: never)."""
-    above = np.nonzero(error >= tolerance)[0]
-    if above.size == 0:
-        return float(time[0])
-    return float(time[above[-1] + 1]) if above[-1] + 1 < time.size else np.inf
 
 
 @pytest.fixture(scope="session")
