@@ -37,7 +37,8 @@ from .output import file_mode
 from .runtime.definition import FmuDefinition, valid_identifier
 from .runtime.slave import versions
 
-__all__ = ["build_fmu", "is_current", "source_hash", "PROJECT_ROOT", "BUNDLED_PACKAGES", "BUNDLED_CODE"]
+__all__ = ["build_fmu", "is_current", "source_hash", "platforms_of", "PROJECT_ROOT", "BUNDLED_PACKAGES",
+           "BUNDLED_CODE"]
 
 PROJECT_ROOT = Path(__file__).resolve().parent.parent
 BUNDLED_PACKAGES = ("observers", "plants", "fmus")
@@ -108,12 +109,34 @@ def _bundle(extra_modules=()) -> tuple[str, dict[str, bytes]]:
     return _relocated(_code_hash(sources), sources)
 
 
-def source_hash(definition: FmuDefinition, extra_modules=(), fmi_version: int = 2, standalone: bool = False) -> str:
-    """Hash of the definition, of the bundled code and of the native binaries (with their Python)."""
+def platforms_of(platforms) -> tuple[str, ...]:
+    """The platforms an FMU is built for: ``None`` (this machine's), a name, ``"linux64,win64"`` or a sequence of
+    names -- checked, without repetitions, in a fixed order."""
+    if platforms is None:
+        return (native.platform_folder(),)
+    names = platforms.split(",") if isinstance(platforms, str) else list(platforms)
+    names = [name.strip() for name in names]
+    unknown = [name for name in names if name not in native.TARGETS]
+    if unknown or not names:
+        raise ValueError(f"platform: {', '.join(unknown) or '(none)'} is not one of {', '.join(native.TARGETS)} "
+                         "(several: linux64,win64)")
+    return tuple(name for name in native.TARGETS if name in names)
+
+
+def source_hash(definition: FmuDefinition, extra_modules=(), fmi_version: int = 2, standalone: bool = False,
+                platforms=None) -> str:
+    """Hash of the definition, of the bundled code and of the native binaries (with their Python), for the
+    ``platforms`` (default: this machine's) the FMU has binaries for."""
     digest = hashlib.sha256(definition.kind.encode())
     if fmi3.check_version(fmi_version) == 3:
         digest.update(b"FMI 3.0")
-    if standalone:
+    platforms = platforms_of(platforms)
+    if platforms != (native.platform_folder(),):
+        digest.update(f"platforms {','.join(platforms)}".encode())
+    if "win64" in platforms:
+        from .native import windows
+        digest.update(windows.identity())
+    if standalone or "win64" in platforms:
         from .standalone import identity
         digest.update(identity())
     for key, value in sorted(vars(definition).items()):
@@ -141,7 +164,7 @@ def _record(**values: str) -> str:
 
 
 def build_fmu(definition: FmuDefinition, out_dir: Path | str, extra_modules=(), fmi_version: int = 2,
-              standalone: bool = False) -> Path:
+              standalone: bool = False, platforms=None) -> Path:
     """Build ``<out_dir>/<model_name>.fmu`` and return its path.
 
     ``extra_modules`` are the user's ``.py`` files or package directories that
@@ -149,9 +172,12 @@ def build_fmu(definition: FmuDefinition, out_dir: Path | str, extra_modules=(), 
     :mod:`fmus.runtime.callables`); they are bundled next to the project packages.
     ``fmi_version`` 3 builds an FMI 3.0 FMU of the same definition (:mod:`fmus.fmi3`).
     ``standalone``: the FMU carries the Python runtime its code imports (:mod:`fmus.standalone`).
+    ``platforms``: what it has binaries for (default this machine's; ``"win64"`` or ``"linux64,win64"``: a win64
+    part, cross-compiled, which always carries its Windows runtime: :mod:`fmus.native.windows`).
     The FMU file appears only once it is complete; Ctrl-C, SIGTERM or SIGHUP wait until it is.
     """
     fmi_version = fmi3.check_version(fmi_version)
+    platforms = platforms_of(platforms)
     if not valid_identifier(definition.model_name):
         raise ValueError(f"model_name: {definition.model_name!r} is not a valid identifier "
                          "(letters, digits, underscore; not starting with a digit)")
@@ -159,16 +185,16 @@ def build_fmu(definition: FmuDefinition, out_dir: Path | str, extra_modules=(), 
         from .runtime.kinds import module_of
         definition.kind_module = module_of(definition.kind)
     model = definition.model_name
-    loader, bridge = native.loader_library(fmi_version), native.bridge_library()  # fail early: nothing half-built
+    binaries = {name: _binaries(name, fmi_version) for name in platforms}  # fail early: nothing half-built
     package, bundled = _bundle(extra_modules)
-    python = native.python_record()
-    if not python["python_library"]:
+    host = native.platform_folder()
+    python = native.python_record() if host in platforms else {}
+    if python and not python["python_library"]:
         warnings.warn(f"{sys.executable} has no shared libpython: {model}.fmu runs in Python-based importers "
                       f"only, unless {native.OVERRIDE} names a Python {python['python_version']} that has one",
                       RuntimeWarning, stacklevel=2)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    binaries = f"binaries/{native.platform_folder() if fmi_version == 2 else fmi3.platform_tuple()}"
     with signals_held():    # built whole or not at all: a stop waits for the end of this FMU (fmus.cli.stopping)
         with tempfile.TemporaryDirectory(prefix="obsfmu_build_") as temp:
             resources = Path(temp)
@@ -179,23 +205,31 @@ def build_fmu(definition: FmuDefinition, out_dir: Path | str, extra_modules=(), 
                 from .fmi3.description import describe
                 description, table = describe(definition, description)
                 extra[f"resources/{fmi3.TABLE}"] = table.encode()
+            bridges = {name: f"{folder}/{native.bridge_name(name)}" for name, (folder, _, _) in binaries.items()}
             record = _record(guid=guid, package=package, slave_module=f"_slave_{model}", slave_class=model,
-                             bridge=f"{binaries}/{native.bridge_name()}", **python)
+                             **({"bridge": bridges[host], **python} if host in platforms else {}),
+                             **{f"{name}.bridge": bridges[name] for name in platforms if name != host})
+            built_with = {"built_with": versions.running()}
+            if "win64" in platforms:
+                from .native.windows import NUMPY
+                built_with["built_with_win64"] = {"numpy": NUMPY}
             files = {
                 "modelDescription.xml": description,
                 f"resources/{model}.json": definition.to_json().encode(),
                 f"resources/{versions.BUILD_INFO}": json.dumps({
-                    "source_hash": source_hash(definition, extra_modules, fmi_version, standalone),
-                    "built_with": versions.running()}).encode(),
+                    "source_hash": source_hash(definition, extra_modules, fmi_version, standalone, platforms),
+                    **built_with}).encode(),
                 "resources/obsfmu_native.txt": record.encode(),
                 "resources/obsfmu_bootstrap.py": native.BOOTSTRAP.read_bytes(),
                 f"resources/{package}/_slave_{model}.py": SLAVE_TEMPLATE.format(model=model, json=f"{model}.json").encode(),
                 **{f"resources/{name}": data for name, data in bundled.items()},
                 **extra,
             }
-            if standalone:
-                from .standalone import with_runtime
-                files = with_runtime(files, "resources/obsfmu_native.txt")
+            if (standalone and host in platforms) or "win64" in platforms:
+                from .standalone import compiled_bundle, with_runtime
+                files.update(compiled_bundle(files))
+                files = with_runtime(files, "resources/obsfmu_native.txt", linux=standalone and host in platforms,
+                                     win64="win64" in platforms)
         handle, name = tempfile.mkstemp(prefix=f".{model}.", suffix=".fmu.partial", dir=out_dir)
         os.fchmod(handle, file_mode())      # the mode of every other result (umask), not mkstemp's 0600
         os.close(handle)
@@ -207,8 +241,9 @@ def build_fmu(definition: FmuDefinition, out_dir: Path | str, extra_modules=(), 
                         archive.write(data, name)
                     else:
                         archive.writestr(name, data)
-                archive.write(loader, f"{binaries}/{model}{loader.suffix}")
-                archive.write(bridge, f"{binaries}/{native.bridge_name()}")
+                for platform, (folder, loader, bridge) in binaries.items():
+                    archive.write(loader, f"{folder}/{model}{loader.suffix}")
+                    archive.write(bridge, bridges[platform])
             target = out_dir / f"{model}.fmu"
             os.replace(partial, target)
         finally:
@@ -216,10 +251,20 @@ def build_fmu(definition: FmuDefinition, out_dir: Path | str, extra_modules=(), 
         return target
 
 
+def _binaries(platform: str, fmi_version: int) -> tuple[str, Path, Path]:
+    """(the binaries folder in the FMU, the loader, the bridge) of ``platform``, compiled (cached)."""
+    target = native.target(platform)
+    if fmi_version == 2:
+        folder = f"binaries/{target.name}"
+    else:
+        folder = f"binaries/{fmi3.platform_tuple() if target is native.host() else target.fmi3_folder}"
+    return folder, native.loader_library(fmi_version, platform), native.bridge_library(platform)
+
+
 def is_current(fmu: Path, definition: FmuDefinition, extra_modules=(), fmi_version: int = 2,
-               standalone: bool = False) -> bool:
-    """True when ``fmu`` exists and was built from this definition, code, binaries, Python, FMI version and
-    build (standalone or not)."""
+               standalone: bool = False, platforms=None) -> bool:
+    """True when ``fmu`` exists and was built from this definition, code, binaries, Python, FMI version, build
+    (standalone or not) and platforms."""
     try:
         with zipfile.ZipFile(fmu) as archive:
             if archive.getinfo("resources/build_info.json").file_size > 1 << 20:    # not ours: rebuilt
@@ -227,4 +272,4 @@ def is_current(fmu: Path, definition: FmuDefinition, extra_modules=(), fmi_versi
             info = json.loads(archive.read("resources/build_info.json"))
     except (FileNotFoundError, KeyError, zipfile.BadZipFile, json.JSONDecodeError):
         return False
-    return info.get("source_hash") == source_hash(definition, extra_modules, fmi_version, standalone)
+    return info.get("source_hash") == source_hash(definition, extra_modules, fmi_version, standalone, platforms)

@@ -41,7 +41,8 @@ from pathlib import Path
 from . import native
 from .native.bootstrap import RUNTIME_DESCRIPTION
 
-__all__ = ["StandaloneError", "with_runtime", "runtime_files", "identity", "describe", "SYSTEM_LIBRARIES", "RUNTIME"]
+__all__ = ["StandaloneError", "with_runtime", "runtime_files", "compiled_bundle", "sourceless", "identity", "describe",
+           "SYSTEM_LIBRARIES", "RUNTIME"]
 
 #: the folder of the runtime inside resources/
 RUNTIME = "python"
@@ -56,7 +57,7 @@ SEARCH_PATH = (_STDLIB, f"{_STDLIB}/lib-dynload", _SITE)
 _LDD = re.compile(r"^\s*(\S+)\s+=>\s+(\S+)\s+\(0x[0-9a-f]+\)\s*$")
 
 
-class StandaloneError(RuntimeError):
+class StandaloneError(native.NativeBuildError):
     """The runtime of a standalone FMU cannot be assembled; the message says why."""
 
 
@@ -95,12 +96,16 @@ def _placed(path: Path) -> tuple[str | None, Path | None]:
     return None, None
 
 
-@functools.lru_cache(maxsize=4096)
-def _sourceless(source: Path, name: str) -> bytes:
-    """``source`` compiled into a sourceless, unchecked hash-based .pyc (PEP 552): valid wherever it lies."""
-    data = source.read_bytes()
+def sourceless(data: bytes, name: str) -> bytes:
+    """The source ``data`` compiled by this interpreter into a sourceless, unchecked hash-based .pyc (PEP 552):
+    valid wherever it lies, on any platform's Python of this minor version."""
     code = compile(data, name, "exec", dont_inherit=True)
     return importlib.util.MAGIC_NUMBER + (1).to_bytes(4, "little") + importlib.util.source_hash(data) + marshal.dumps(code)
+
+
+@functools.lru_cache(maxsize=4096)
+def _sourceless(source: Path, name: str) -> bytes:
+    return sourceless(source.read_bytes(), name)
 
 
 def _module_files(modules: dict[str, Path], resources: Path) -> tuple[dict[str, bytes | Path], set[Path]]:
@@ -189,16 +194,33 @@ def _stripped(files: dict[str, bytes | Path]) -> dict[str, bytes | Path]:
             else data for name, data in files.items()}
 
 
-def runtime_files(resources: Path) -> tuple[dict[str, bytes | Path], dict[str, str]]:
+def compiled_bundle(files: dict[str, bytes]) -> dict[str, bytes]:
+    """The bytecode of the FMU's own code (``resources/_obsfmu_<hash>/...``): a sourceless-style, unchecked
+    ``__pycache__/<module>.<cache tag>.pyc`` beside each ``.py``, used by the runtime the FMU carries (the
+    building Python's minor version, on Linux and Windows alike) instead of compiling the code at the first
+    instantiation -- nothing can be written into an unzipped FMU.  Another Python (a host of another version)
+    ignores them (another cache tag)."""
+    tag = sys.implementation.cache_tag
+    compiled = {}
+    for name, data in files.items():
+        if name.startswith("resources/_obsfmu_") and name.endswith(".py"):
+            folder, _, file = name.rpartition("/")
+            compiled[f"{folder}/__pycache__/{file[:-3]}.{tag}.pyc"] = sourceless(data, name)
+    return compiled
+
+
+def runtime_files(resources: Path, modules: dict[str, Path] | None = None
+                  ) -> tuple[dict[str, bytes | Path], dict[str, str]]:
     """The files of ``resources/python/`` (relative to it: bytes, or a file to copy) for the FMU whose
-    resources are unpacked in ``resources``, and the record's ``runtime*`` values."""
+    resources are unpacked in ``resources`` and whose code imports ``modules`` (default: traced here), and the
+    record's ``runtime*`` values."""
     library = native.python_record()["python_library"]
     if not library:
         raise StandaloneError(f"{sys.executable} has no shared libpython: a standalone FMU needs one "
                               "(a Python built with --enable-shared)")
     if not sys.platform.startswith("linux"):
         raise StandaloneError(f"standalone FMUs are built on Linux only (this is {sys.platform})")
-    modules = traced_modules(resources)
+    modules = traced_modules(resources) if modules is None else modules
     files, tops = _module_files(modules, resources.resolve())
     files.update(_libraries_folders(tops))
     libpython = Path(library).resolve()
@@ -221,9 +243,13 @@ def _description(version: str, modules: dict, record: dict) -> str:
             + "".join(f"#   {name}\n" for name in sorted(modules)))
 
 
-def with_runtime(files: dict[str, bytes], record_name: str) -> dict[str, bytes | Path]:
-    """An FMU's ``files`` (archive name -> bytes, as the builder assembles them) with its runtime in
-    ``resources/python/`` and the runtime's keys appended to its record ``record_name``."""
+def with_runtime(files: dict[str, bytes], record_name: str, linux: bool = True, win64: bool = False
+                 ) -> dict[str, bytes | Path]:
+    """An FMU's ``files`` (archive name -> bytes, as the builder assembles them) with the runtimes it carries:
+    ``linux``, this machine's in ``resources/python/``; ``win64``, the Windows one in ``resources/python-win64/``
+    (:mod:`fmus.native.windows`) -- and their keys appended to its record ``record_name``.  What the code
+    imports is traced once for both."""
+    amended, record = dict(files), {}
     with tempfile.TemporaryDirectory(prefix="obsfmu_standalone_") as temp:
         root = Path(temp)
         for name, data in files.items():
@@ -231,10 +257,19 @@ def with_runtime(files: dict[str, bytes], record_name: str) -> dict[str, bytes |
                 target = root / name
                 target.parent.mkdir(parents=True, exist_ok=True)
                 target.write_bytes(data)
-        runtime, record = runtime_files(root / "resources")
-    amended = dict(files)
+        modules = traced_modules(root / "resources")
+        if linux:
+            runtime, keys = runtime_files(root / "resources", modules)
+            amended.update({f"resources/{RUNTIME}/{name}": data for name, data in sorted(runtime.items())})
+            record.update(keys)
+        if win64:
+            from .native import windows
+            runtime, keys = windows.runtime_files(modules)
+            runtime[RUNTIME_DESCRIPTION] = _description(f"{windows.python_version()} (win64, embeddable)",
+                                                         modules, keys).encode()
+            amended.update({f"resources/{windows.RUNTIME}/{name}": data for name, data in sorted(runtime.items())})
+            record.update(keys)
     amended[record_name] = files[record_name] + record_lines(record).encode()
-    amended.update({f"resources/{RUNTIME}/{name}": data for name, data in sorted(runtime.items())})
     return amended
 
 

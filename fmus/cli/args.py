@@ -12,7 +12,7 @@ from pathlib import Path
 from ..master import COUPLINGS
 
 __all__ = ["Parser", "Duration", "positive", "positive_int", "duration", "scenario_times",
-           "add_scenario_arguments", "add_system_file", "add_fmi_version", "add_standalone", "add_jobs_argument", "cpus", "DEFAULT_BUILD", "DEFAULT_RESULTS", "EXIT_USAGE",
+           "add_scenario_arguments", "add_system_file", "add_fmi_version", "add_platform", "add_standalone", "add_jobs_argument", "cpus", "DEFAULT_BUILD", "DEFAULT_RESULTS", "EXIT_USAGE",
            "TIME_UNITS"]
 
 DEFAULT_BUILD = Path("build")
@@ -111,6 +111,24 @@ def add_fmi_version(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--fmi-version", type=int, choices=(2, 3), default=2,
                         help="FMI version of the FMUs: 2 (default) or 3 (array variables; FMI 3.0 FMUs are built "
                              "into <build dir>/fmi3; see docs/fmi3.md)")
+
+
+def platform_list(text: str) -> tuple[str, ...]:
+    """``--platform linux64,win64``: the platforms checked (argparse type)."""
+    from ..builder import platforms_of
+    try:
+        return platforms_of(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc).removeprefix("platform: ")) from None
+
+
+def add_platform(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--platform", type=platform_list, metavar="LIST",
+                        help="the platforms the FMUs have binaries for, comma-separated: linux64, win64 or "
+                             "linux64,win64 (one FMU with both; default: this machine's).  win64 binaries are "
+                             "cross-compiled with MinGW-w64 and the FMU carries a Windows CPython and numpy "
+                             "(fetched once from the package registry, or from OBSFMU_WHEELS=DIR); "
+                             "docs/portability.md")
 
 
 def add_standalone(parser: argparse.ArgumentParser) -> None:

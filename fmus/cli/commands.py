@@ -7,8 +7,8 @@ from pathlib import Path
 
 from ..master import ORDERS
 from ..output import check_directory, check_file
-from .args import (DEFAULT_BUILD, DEFAULT_RESULTS, add_fmi_version, add_jobs_argument, add_scenario_arguments,
-                   add_standalone, add_system_file, duration, positive, scenario_times)
+from .args import (DEFAULT_BUILD, DEFAULT_RESULTS, add_fmi_version, add_jobs_argument, add_platform,
+                   add_scenario_arguments, add_standalone, add_system_file, duration, positive, scenario_times)
 from .runs import build_all, figure_paths, report_built, report_interrupted, run_one, run_scenario
 from .stopping import StopRequest
 from .subcommand import Subcommand
@@ -31,9 +31,9 @@ def cmd_build(args) -> int:
         definitions = definitions_of(args.config)
     out = check_directory("--out", args.out)
     if args.config:
-        paths = build_definitions(definitions, out, args.fmi_version, args.standalone)
+        paths = build_definitions(definitions, out, args.fmi_version, args.standalone, args.platform)
     else:
-        paths = build_all(out, args.fmi_version, args.standalone)
+        paths = build_all(out, args.fmi_version, args.standalone, args.platform)
     return 1 if report_built(paths) else 0
 
 
@@ -89,7 +89,8 @@ def cmd_export(args) -> int:
     build_dir = check_directory("--build-dir", args.build_dir, writable=False)
     path = export(scenario, args.format, out, build_dir, step=times["step"], stop_time=times["stop_time"],
                   overrides=scenarios.parse_overrides(args.set or []), coupling=args.coupling,
-                  fmi_version=args.fmi_version, system_outputs=args.system_outputs, standalone=args.standalone)
+                  fmi_version=args.fmi_version, system_outputs=args.system_outputs, standalone=args.standalone,
+                  platforms=args.platform)
     print(f"wrote {path}")
     return 0
 
@@ -156,6 +157,7 @@ def configure_build(parser) -> None:
                         help="directory for the FMUs (created if missing; default: build)")
     add_fmi_version(parser)
     add_standalone(parser)
+    add_platform(parser)
 
 
 def configure_run(parser) -> None:
@@ -188,6 +190,7 @@ def configure_export(parser) -> None:
                         help="ssp: no connections to the system's output connectors (libcosim and ECOS reject "
                              "them; FMU Manipulation Toolbox needs them to expose the outputs)")
     add_standalone(parser)
+    add_platform(parser)
 
 
 def configure_all(parser) -> None:

@@ -13,6 +13,7 @@ from observers.checks import ParameterError
 
 from ..campaign.cli import SUBCOMMAND as SWEEP
 from ..master import SimulationError
+from ..native import NativeBuildError
 from ..output import OutputError
 from .args import EXIT_USAGE, Parser
 from .commands import SUBCOMMANDS as COMMANDS
@@ -69,6 +70,9 @@ def main(argv: list[str] | None = None) -> int:
     except (ParameterError, SimulationError, OutputError) as exc:
         print(f"obsfmu: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
+    except NativeBuildError as exc:  # the machine lacks what building a binary needs (a compiler, a Windows wheel)
+        print(f"obsfmu: error: {exc}", file=sys.stderr)
+        return 1
     except KeyboardInterrupt as exc:  # Ctrl-C, or a Terminated
         print(f"\nobsfmu: interrupted ({exc or 'SIGINT'})", file=sys.stderr)
         return interrupted_status(exc)

@@ -33,11 +33,12 @@ def report_built(paths) -> int:
     return failures
 
 
-def build_all(build_dir: Path, fmi_version: int = 2, standalone: bool = False) -> list[Path]:
-    """Every distinct FMU of the scenarios, each built once (ltv-ls and ltv-ls-bounded share theirs)."""
+def build_all(build_dir: Path, fmi_version: int = 2, standalone: bool = False, platforms=None) -> list[Path]:
+    """Every distinct FMU of the scenarios, each built once (ltv-ls and ltv-ls-bounded share theirs), with
+    binaries for ``platforms`` (default: this machine's)."""
     from ..scenarios import SCENARIOS, ensure_all
     return list(ensure_all(SCENARIOS.values(), build_dir, force=True, fmi_version=fmi_version,
-                           standalone=standalone).values())
+                           standalone=standalone, platforms=platforms).values())
 
 
 def figure_paths(option: str, path: str) -> list[Path]:

@@ -25,19 +25,21 @@ import subprocess
 import sys
 import sysconfig
 import tempfile
+from dataclasses import dataclass
 from pathlib import Path
 
 from ..caches import writable
 
-__all__ = ["NativeBuildError", "platform_folder", "fmi_headers", "loader_library", "bridge_library", "bridge_name",
-           "python_record", "identity", "BOOTSTRAP", "OVERRIDE", "STARTS"]
+__all__ = ["NativeBuildError", "Target", "TARGETS", "target", "host", "platform_folder", "fmi_headers", "compiled",
+           "loader_library", "bridge_library", "bridge_name", "python_record", "identity", "BOOTSTRAP", "OVERRIDE",
+           "STARTS"]
 
 HERE = Path(__file__).parent
 LOADER, BRIDGE = HERE / "loader.c", HERE / "bridge.c"
 #: the FMI 3.0 loader (same bridge, same Python rules; docs/fmi3.md)
 LOADER_FMI3 = HERE / "loader_fmi3.c"
-#: what the sources include (obsfmu_native.h, loader_common.h): part of every cache key
-HEADERS = tuple(sorted(HERE.glob("*.h")))
+#: what the sources include (obsfmu_native.h, loader_common.h, win64/pyconfig.h): part of every cache key
+HEADERS = tuple(sorted(HERE.glob("*.h"))) + tuple(sorted(HERE.glob("win64/*.h")))
 #: run by the bridge at each instantiation to import the FMU's own code (copied into resources/)
 BOOTSTRAP = HERE / "bootstrap.py"
 #: environment variable pointing an FMU at another Python installation (read by the loader)
@@ -50,6 +52,56 @@ class NativeBuildError(RuntimeError):
     """The FMU binary could not be compiled; the message says what is missing."""
 
 
+@dataclass(frozen=True)
+class Target:
+    """A platform the FMU binaries are compiled for (``obsfmu build --platform``)."""
+
+    name: str                 #: the FMI 2.0 binaries folder: ``linux64``, ``win64``, ``darwin64``
+    fmi3_folder: str          #: the FMI 3.0 binaries folder (platform tuple): ``x86_64-linux``, ...
+    suffix: str               #: of its shared libraries: ``.so``, ``.dll``, ``.dylib``
+    shared: tuple[str, ...]   #: compiler flags for a shared library
+    loader: tuple[str, ...]   #: and for the loaders (no Python in them)
+
+    def compiler(self) -> list[str]:
+        """The C compiler command for this target (``$CC`` or cc for the host; MinGW-w64 for win64)."""
+        if self.name == "win64":
+            command = os.environ.get("OBSFMU_MINGW_CC") or shutil.which(MINGW)
+            if not command:
+                raise NativeBuildError(f"a win64 FMU needs the MinGW-w64 cross compiler {MINGW} (Debian: apt-get install "
+                                       "mingw-w64; or set OBSFMU_MINGW_CC) -- only to build, never to run")
+            return [command]
+        if self is not host():
+            raise NativeBuildError(f"--platform {self.name}: FMU binaries for {self.name} are built on {self.name} "
+                                   f"itself (this is {platform_folder()}); win64 is cross-compiled from Linux")
+        return [_compiler()]
+
+
+#: MinGW-w64's C compiler (the win64 binaries; tests run them under wine)
+MINGW = "x86_64-w64-mingw32-gcc"
+_UNIX_SHARED = ("-shared", "-fPIC", "-O2", "-Wall", "-fvisibility=hidden")
+# snprintf may truncate over-long paths on purpose (they then do not exist): no warning for that
+TARGETS = {
+    "linux64": Target("linux64", "x86_64-linux", ".so", _UNIX_SHARED,
+                      ("-pthread", "-ldl", "-Wno-format-truncation", "-Wl,-Bsymbolic")),
+    "darwin64": Target("darwin64", "x86_64-darwin", ".dylib", _UNIX_SHARED, ("-pthread", "-Wno-format-truncation")),
+    # static libgcc and winpthreads: the DLLs need nothing but KERNEL32 and msvcrt (and the bridge python3X.dll)
+    "win64": Target("win64", "x86_64-windows", ".dll", ("-shared", "-O2", "-Wall", "-static-libgcc"),
+                    ("-pthread", "-static", "-Wno-format-truncation")),
+}
+
+
+def target(name: str) -> Target:
+    """The :class:`Target` of a platform name (``linux64``, ``win64``, ``darwin64``)."""
+    if name not in TARGETS:
+        raise NativeBuildError(f"platform {name!r} is not one of {', '.join(TARGETS)}")
+    return TARGETS[name]
+
+
+def host() -> Target:
+    """The platform this machine builds for natively."""
+    return TARGETS[platform_folder()]
+
+
 def platform_folder() -> str:
     """FMI 2.0 name of the binaries folder of this platform."""
     if sys.platform.startswith("linux"):
@@ -57,10 +109,6 @@ def platform_folder() -> str:
     if sys.platform == "darwin":
         return "darwin64"
     raise NativeBuildError(f"platform {sys.platform!r}: building FMU binaries is supported on Linux and macOS")
-
-
-def _suffix() -> str:
-    return ".dylib" if sys.platform == "darwin" else ".so"
 
 
 def fmi_headers() -> Path:
@@ -79,58 +127,67 @@ def _compiler() -> str:
     return compiler
 
 
-def _cache_dir() -> Path:
+def cache_dir() -> Path:
+    """Where the compiled binaries are cached (``$XDG_CACHE_HOME/obsfmu/native``)."""
     root = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
     return root / "obsfmu" / "native"
 
 
-def _compiled(stem: str, source: Path, flags: list[str], key_material: str) -> Path:
-    """``source`` compiled with ``flags`` into the cache (once per key), atomically."""
+def compiled(stem: str, source: Path, flags: list[str], key_material: str, target: Target | None = None) -> Path:
+    """``source`` compiled for ``target`` (default: this machine) with ``flags`` into a shared library in the
+    cache (once per key: the sources, the flags, ``key_material``), atomically."""
+    target = target or host()
     key = hashlib.sha256(source.read_bytes() + b"".join(h.read_bytes() for h in HEADERS) + " ".join(flags).encode()
-                         + key_material.encode()).hexdigest()[:16]
-    name = f"{stem}-{key}{_suffix()}"
-    target = _cache_dir() / name
-    if not target.is_file():             # to be compiled: into a cache that can be written
-        target = writable(target.parent, "XDG_CACHE_HOME") / name
-    if target.is_file():
-        return target
-    with tempfile.TemporaryDirectory(dir=target.parent) as temp:
-        output = Path(temp) / target.name
-        command = [_compiler(), "-shared", "-fPIC", "-O2", "-Wall", "-fvisibility=hidden", "-o", str(output),
-                   str(source), f"-I{HERE}", f"-I{fmi_headers()}", *flags]
+                         + key_material.encode() + target.name.encode()).hexdigest()[:16]
+    name = f"{stem}-{key}{target.suffix}"
+    found = cache_dir() / name
+    if found.is_file():
+        return found
+    folder = writable(cache_dir(), "XDG_CACHE_HOME")   # to be compiled: into a cache that can be written
+    if (folder / name).is_file():
+        return folder / name
+    with tempfile.TemporaryDirectory(dir=folder) as temp:
+        output = Path(temp) / name
+        command = [*target.compiler(), *target.shared, "-o", str(output), str(source), f"-I{HERE}",
+                   f"-I{fmi_headers()}", *flags]
         completed = subprocess.run(command, capture_output=True, text=True)
         if completed.returncode != 0:
             raise NativeBuildError("compiling the FMU binary failed:\n" + " ".join(command) + "\n"
                                    + completed.stderr)
-        os.replace(output, target)  # atomic: concurrent builds never see a partial file
-    return target
+        os.replace(output, folder / name)  # atomic: concurrent builds never see a partial file
+    return folder / name
 
 
-def loader_library(fmi_version: int = 2) -> Path:
-    """The loader of FMI ``fmi_version`` (2 or 3) for this platform (no Python in it: one binary
-    serves every Python version)."""
+def loader_library(fmi_version: int = 2, platform: str | None = None) -> Path:
+    """The loader of FMI ``fmi_version`` (2 or 3) for ``platform`` (default: this machine's; no Python in it: one
+    binary serves every Python version)."""
     if fmi_version not in (2, 3):
         raise NativeBuildError(f"fmi_version: {fmi_version!r} is not 2 or 3")
-    # snprintf may truncate over-long paths on purpose (they then do not exist): no warning for that
-    flags = ["-pthread", "-ldl", "-Wno-format-truncation"] + ([] if sys.platform == "darwin" else ["-Wl,-Bsymbolic"])
+    chosen = target(platform) if platform else host()
     if fmi_version == 3:
-        return _compiled("obsfmu_loader_fmi3", LOADER_FMI3, flags, platform_folder())
-    return _compiled("obsfmu_loader", LOADER, flags, platform_folder())
+        return compiled("obsfmu_loader_fmi3", LOADER_FMI3, list(chosen.loader), chosen.name, chosen)
+    return compiled("obsfmu_loader", LOADER, list(chosen.loader), chosen.name, chosen)
 
 
-def bridge_library() -> Path:
-    """The bridge for this interpreter's Python version (compiled against its headers)."""
+def bridge_library(platform: str | None = None) -> Path:
+    """The bridge for this interpreter's Python version (compiled against its headers), for ``platform``
+    (default: this machine's; win64: :func:`fmus.native.windows.bridge_library`)."""
+    if platform and target(platform) is not host():
+        if platform != "win64":
+            raise NativeBuildError(f"--platform {platform}: its bridge is built on {platform} itself")
+        from .windows import bridge_library as windows_bridge
+        return windows_bridge()
     include = sysconfig.get_paths()["include"]
     if not (Path(include) / "Python.h").is_file():
         raise NativeBuildError(f"Python.h not found in {include} (install the Python development headers, "
                                f"e.g. python{_version()}-dev)")
     flags = [f"-I{include}"] + (["-undefined", "dynamic_lookup"] if sys.platform == "darwin" else [])
-    return _compiled(f"obsfmu_bridge_cp{_version().replace('.', '')}", BRIDGE, flags, include + sys.version)
+    return compiled(f"obsfmu_bridge_cp{_version().replace('.', '')}", BRIDGE, flags, include + sys.version)
 
 
-def bridge_name() -> str:
+def bridge_name(platform: str | None = None) -> str:
     """File name of the bridge inside an FMU's binaries folder."""
-    return f"obsfmu_bridge_cp{_version().replace('.', '')}{_suffix()}"
+    return f"obsfmu_bridge_cp{_version().replace('.', '')}{(target(platform) if platform else host()).suffix}"
 
 
 def _version() -> str:

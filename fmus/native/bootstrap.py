@@ -13,6 +13,7 @@ are dropped), so modules imported lazily later are still found.
 """
 
 import importlib
+import importlib.machinery
 import importlib.util
 import os
 import sys
@@ -58,23 +59,60 @@ def _join_runtime(resources: str) -> None:
     if not (sys.flags.isolated and os.path.isfile(os.path.join(sys.prefix, RUNTIME_DESCRIPTION))):
         return  # not a standalone runtime: the host's interpreter, or the one recorded at the build
     record = {}
+    own = "win64." if sys.platform == "win32" else ""    # this platform's keys first (obsfmu_native.h)
     with open(os.path.join(resources, "obsfmu_native.txt"), encoding="utf-8") as file:
         for line in file:
             key, _, value = line.rstrip("\n").partition("=")
-            record.setdefault(key, value)
+            if own and key.startswith(own):
+                record[key[len(own):]] = value
+            else:
+                record.setdefault(key, value)
     home = os.path.join(resources, record.get("runtime", ""))
     if not record.get("runtime") or os.path.realpath(home) == os.path.realpath(sys.prefix):
         return
     relative = record["runtime_path"].split(":")
     pairs = [(os.path.join(sys.prefix, r) + os.sep, os.path.join(home, r) + os.sep) for r in relative]
     sys.path.extend(p for p in (os.path.join(home, r) for r in relative) if p not in sys.path)
+    _other_runtimes().pairs.extend(pair for pair in pairs if pair not in _other_runtimes().pairs)
     for module in list(sys.modules.values()):
         path = getattr(module, "__path__", None)
         for entry in list(path) if isinstance(path, list) else ():
-            for running, own in pairs:
-                folder = own + entry[len(running):] if entry.startswith(running) else None
-                if folder and folder not in path and os.path.isdir(folder):
+            for folder in _equivalents(entry, pairs):
+                if folder not in path:
                     path.append(folder)
+
+
+def _equivalents(entry: str, pairs) -> list:
+    """The folders of the other runtimes that correspond to ``entry``, a folder of the running one."""
+    return [own + entry[len(running):] for running, own in pairs
+            if entry.startswith(running) and os.path.isdir(own + entry[len(running):])]
+
+
+class _OtherRuntimesFinder:
+    """The last finder of ``sys.meta_path``: a submodule its package's folders lack (``numpy.ma`` of a package
+    imported from a runtime without it) is looked for in the same package's folders of the other standalone FMUs'
+    runtimes.  Joining ``__path__`` above covers the packages imported already; this covers those imported
+    later -- also by another FMU's thread while this one instantiates (two standalone FMUs started at once: the
+    first imported numpy from its runtime, the second then missed ``numpy.ma``)."""
+
+    def __init__(self):
+        self.pairs = []      # (a folder of the running runtime, the same folder of another one)
+
+    def find_spec(self, name, path, target=None):
+        if not path:
+            return None       # a top-level module: sys.path holds every runtime's folders already
+        folders = [folder for entry in path for folder in _equivalents(entry, self.pairs)]
+        return importlib.machinery.PathFinder.find_spec(name, folders) if folders else None
+
+
+def _other_runtimes() -> _OtherRuntimesFinder:
+    """The process's one finder (this file runs again at each instantiation: the finder is found by its name)."""
+    for finder in sys.meta_path:
+        if type(finder).__name__ == "_OtherRuntimesFinder":
+            return finder
+    finder = _OtherRuntimesFinder()
+    sys.meta_path.append(finder)
+    return finder
 
 
 def _add_extraction(package: str, directory: str) -> None:

@@ -42,6 +42,12 @@
 
 #include "obsfmu_native.h"
 
+#ifdef _WIN32
+#define OBSFMU_BRIDGE_EXPORT __declspec(dllexport) /* win64: linked to python3X.dll by its name */
+#else
+#define OBSFMU_BRIDGE_EXPORT __attribute__((visibility("default")))
+#endif
+
 /* The buffers of do_step_batched: the slave's vectors of input values, slopes and outputs
  * (slave.batch_plan), written and read in place through the buffer protocol, for the value
  * references they were made for; and the bound method slave.step_batched. */
@@ -909,7 +915,7 @@ static int refused(fmi2Component component)
     return c != NULL && c->refused;
 }
 
-__attribute__((visibility("default"))) const ObsfmuBridge *obsfmu_bridge(void)
+OBSFMU_BRIDGE_EXPORT const ObsfmuBridge *obsfmu_bridge(void)
 {
     static const ObsfmuBridge table = {
         OBSFMU_BRIDGE_ABI, start, instantiate, free_instance, set_debug_logging, setup_experiment,

@@ -19,9 +19,13 @@
 #ifndef OBSFMU_LOADER_COMMON_H
 #define OBSFMU_LOADER_COMMON_H
 
-#ifdef _WIN32
-#include "win32_dlfcn.h" /* dlopen & co. over LoadLibrary & co. (a win64 build: docs/portability.md) */
+#if defined(_WIN32)
+#include "win32_dlfcn.h" /* dlopen & co. over LoadLibraryExW & co. (the win64 build: docs/portability.md) */
 #define OBSFMU_EXPORT __declspec(dllexport)
+#elif defined(__APPLE__)
+#include <dlfcn.h>
+#include <mach-o/dyld.h> /* _dyld_image_count, _dyld_get_image_name: the loaded images, in load order */
+#define OBSFMU_EXPORT __attribute__((visibility("default")))
 #else
 #include <dlfcn.h>
 #include <link.h>
@@ -40,6 +44,28 @@
 
 static double magnitude(double x) { return x < 0 ? -x : x; }
 static int finite(double x) { return x == x && magnitude(x) <= 1.7976931348623157e308; }
+
+/* One line of `file` (its '\n' kept) into *line, grown as needed (getline(3), which MinGW lacks); its length, or -1
+ * at the end of the file (or out of memory). */
+static inline long read_line(char **line, size_t *capacity, FILE *file)
+{
+    size_t length = 0;
+    int c;
+    while ((c = fgetc(file)) != EOF) {
+        if (length + 2 > *capacity) {
+            size_t grown_size = *capacity ? 2 * *capacity : 256;
+            char *grown = realloc(*line, grown_size);
+            if (grown == NULL) return -1;
+            *line = grown;
+            *capacity = grown_size;
+        }
+        (*line)[length++] = (char)c;
+        if (c == '\n') break;
+    }
+    if (length == 0) return -1;
+    (*line)[length] = '\0';
+    return (long)length;
+}
 
 /* ------------------------------------------------------------------ handles: checked, not trusted */
 
@@ -186,17 +212,21 @@ static void *bridge_library;          /* this loader's bridge (closed when the l
 static const ObsfmuBridge *bridge;
 static char start_failure[PATH_SIZE]; /* an interpreter that failed to start cannot be retried */
 
-static int exists(const char *path)
-{
-    struct stat info;
-    return path[0] != '\0' && stat(path, &info) == 0;
-}
+static int exists(const char *path) { return path[0] != '\0' && obsfmu_stat(path, NULL); }
 
 /* "3.11.7 (main, ...)" has the version "3.11" (and "3.1" does not). */
 static int same_version(const char *running, const char *wanted)
 {
     size_t n = strlen(wanted);
     return running && strncmp(running, wanted, n) == 0 && (running[n] == '.' || running[n] == ' ' || running[n] == '\0');
+}
+
+/* The version number of Py_GetVersion()'s "3.12.1 (main, May  9 2024, ...)" into out (64 bytes): "3.12.1". */
+static const char *version_number(const char *running, char *out)
+{
+    snprintf(out, 64, "%.*s", (int)(running ? strcspn(running, " ") : 0), running ? running : "");
+    if (out[0] == '\0') snprintf(out, 64, "of unknown version");
+    return out;
 }
 
 /* dirname, in place */
@@ -221,7 +251,7 @@ static void base_installation(const char *root, char *base, size_t size)
     char path[PATH_SIZE], line[PATH_SIZE];
     snprintf(base, size, "%s", root);
     snprintf(path, sizeof path, "%s/pyvenv.cfg", root);
-    FILE *file = fopen(path, "r");
+    FILE *file = obsfmu_fopen(path, "r");
     if (file == NULL) return;
     while (fgets(line, sizeof line, file)) {
         char *value = strchr(line, '=');
@@ -241,10 +271,10 @@ static int python_from_override(const char *value, const char *record, char *pro
     char version[32], multiarch[128], root[PATH_SIZE], base[PATH_SIZE], path[2 * PATH_SIZE + 64];
     obsfmu_record_value(record, "python_version", version, sizeof version);
     obsfmu_record_value(record, "python_multiarch", multiarch, sizeof multiarch);
-    struct stat info;
+    int directory = 0;
     program[0] = library[0] = '\0';
     snprintf(root, sizeof root, "%s", value);
-    if (stat(value, &info) == 0 && !S_ISDIR(info.st_mode)) { /* <root>/bin/python */
+    if (obsfmu_stat(value, &directory) && !directory) { /* <root>/bin/python */
         snprintf(program, PATH_SIZE, "%s", value);
         parent(root);
         parent(root);
@@ -281,8 +311,9 @@ static void *open_python(const char *library, const char *version, int *must_sta
     const char *(*get_version)(void) = (const char *(*)(void))dlsym(python, "Py_GetVersion");
     int (*initialized)(void) = (int (*)(void))dlsym(python, "Py_IsInitialized");
     if (get_version == NULL || initialized == NULL || !same_version(get_version(), version)) {
-        snprintf(message, size, "%s is not Python %s (it is %.20s); %s", library, version,
-                 get_version ? get_version() : "not a libpython", hint);
+        char number[64];
+        snprintf(message, size, "%s is not Python %s (it is %s); %s", library, version,
+                 get_version ? version_number(get_version(), number) : "not a libpython", hint);
         return NULL; /* never dlclose a libpython: it may have run already */
     }
     *must_start = !initialized();
@@ -370,21 +401,36 @@ static void *load_runtime(const char *resources, const char *record, char *home,
 /* Every obsfmu loader (FMI 2.0 and 3.0, of any FMU) exports this mutex; the one of the loader loaded
  * FIRST in the process guards finding and starting Python for all of them, so two FMUs instantiated at
  * once from two threads never both start an interpreter (docs/portability.md, "One Python start per
- * process").  Found in the list of loaded objects (dl_iterate_phdr: in load order), pinned
- * (RTLD_NODELETE) so that it stays while any loader may still use it. */
+ * process").  Found in the list of loaded objects in load order (Linux: dl_iterate_phdr; macOS: dyld's images;
+ * Windows: EnumProcessModules), pinned (RTLD_NODELETE, GET_MODULE_HANDLE_EX_FLAG_PIN) so that it stays while any
+ * loader may still use it. */
 #define GUARD "obsfmu_python_start_guard_1"
 OBSFMU_EXPORT pthread_mutex_t obsfmu_python_start_guard_1 = PTHREAD_MUTEX_INITIALIZER;
 
+#ifdef _WIN32
+/* The guard of the first loaded obsfmu loader: the modules in load order, each asked for the symbol; the one
+ * found is pinned (GET_MODULE_HANDLE_EX_FLAG_PIN: never unloaded). */
+static pthread_mutex_t *process_guard(void)
+{
+    HMODULE modules[OBSFMU_MODULES], pinned;
+    DWORD count = obsfmu_modules(modules);
+    for (DWORD i = 0; i < count; i++) {
+        pthread_mutex_t *guard = (pthread_mutex_t *)(void *)GetProcAddress(modules[i], GUARD);
+        if (guard != NULL && GetModuleHandleExW(GET_MODULE_HANDLE_EX_FLAG_FROM_ADDRESS | GET_MODULE_HANDLE_EX_FLAG_PIN,
+                                                (LPCWSTR)(void *)guard, &pinned))
+            return guard;
+    }
+    return &obsfmu_python_start_guard_1;
+}
+#else
 typedef struct {
     char **names;
     size_t count, capacity;
 } Loaded;
 
-static int note_loaded(struct dl_phdr_info *info, size_t size, void *data)
+static int note_name(Loaded *loaded, const char *object)
 {
-    (void)size;
-    Loaded *loaded = data;
-    if (info->dlpi_name == NULL || info->dlpi_name[0] == '\0') return 0; /* the program itself */
+    if (object == NULL || object[0] == '\0') return 0; /* the program itself */
     if (loaded->count == loaded->capacity) {
         size_t capacity = loaded->capacity ? 2 * loaded->capacity : 64;
         char **grown = realloc(loaded->names, capacity * sizeof(char *));
@@ -392,20 +438,38 @@ static int note_loaded(struct dl_phdr_info *info, size_t size, void *data)
         loaded->names = grown;
         loaded->capacity = capacity;
     }
-    size_t length = strlen(info->dlpi_name) + 1;
+    size_t length = strlen(object) + 1;
     char *name = malloc(length);
     if (name == NULL) return 1;
-    memcpy(name, info->dlpi_name, length);
+    memcpy(name, object, length);
     loaded->names[loaded->count++] = name;
     return 0;
 }
+
+#ifdef __APPLE__
+/* The loaded images in load order (dyld's list; image 0 is the program). */
+static void list_loaded(Loaded *loaded)
+{
+    for (uint32_t i = 1, n = _dyld_image_count(); i < n; i++)
+        if (note_name(loaded, _dyld_get_image_name(i))) break;
+}
+#else
+static int note_loaded(struct dl_phdr_info *info, size_t size, void *data)
+{
+    (void)size;
+    return note_name(data, info->dlpi_name);
+}
+
+/* The loaded objects in load order (the dynamic loader's list). */
+static void list_loaded(Loaded *loaded) { dl_iterate_phdr(note_loaded, loaded); }
+#endif
 
 /* The guard of the first loaded obsfmu loader (this one's if none is found: no worse than one per loader). */
 static pthread_mutex_t *process_guard(void)
 {
     Loaded loaded = {NULL, 0, 0};
     pthread_mutex_t *guard = NULL;
-    dl_iterate_phdr(note_loaded, &loaded);   /* names first: no dlopen while the list is locked */
+    list_loaded(&loaded);   /* names first: no dlopen while the list is locked */
     for (size_t i = 0; i < loaded.count && guard == NULL; i++) {
         void *object = dlopen(loaded.names[i], RTLD_LAZY | RTLD_NOLOAD);
         guard = object ? (pthread_mutex_t *)dlsym(object, GUARD) : NULL;
@@ -416,6 +480,7 @@ static pthread_mutex_t *process_guard(void)
     free(loaded.names);
     return guard ? guard : &obsfmu_python_start_guard_1;
 }
+#endif
 
 /* The bridge of this FMU, with a Python to run it; NULL and a message saying what is missing. */
 static const ObsfmuBridge *get_bridge(const char *resources, const char *record, char *message, size_t size)
@@ -438,10 +503,11 @@ static const ObsfmuBridge *get_bridge(const char *resources, const char *record,
     if (initialized != NULL) { /* the process has Python: use it */
         const char *(*get_version)(void) = (const char *(*)(void))dlsym(RTLD_DEFAULT, "Py_GetVersion");
         const char *running = get_version ? get_version() : "";
+        char number[64];
         if (!same_version(running, version)) {
-            snprintf(message, size, "this process runs Python %.20s, but this FMU's binary was built for Python %s: "
+            snprintf(message, size, "this process runs Python %s, but this FMU's binary was built for Python %s: "
                      "load it from a Python %s process, or rebuild it (obsfmu build) with the host's Python%s",
-                     running, version, version, own ? " (a standalone FMU runs its own Python only in a process "
+                     version_number(running, number), version, version, own ? " (a standalone FMU runs its own Python only in a process "
                      "that runs no Python)" : "");
             goto done;
         }
@@ -730,7 +796,7 @@ static int core_read_starts(Core *c, const char *resources, char *message, size_
 {
     char path[PATH_SIZE + 32], line[256];
     snprintf(path, sizeof path, "%s/" OBSFMU_STARTS, resources);
-    FILE *file = fopen(path, "r");
+    FILE *file = obsfmu_fopen(path, "r");
     if (file == NULL) return 0;
     while (fgets(line, sizeof line, file)) {
         Start start;

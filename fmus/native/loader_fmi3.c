@@ -24,11 +24,11 @@
  *      the slope the slave integrates with -- what fmi2SetRealInputDerivatives does in FMI 2.0.
  *      Without it the slave's <port>_interpolation parameters decide, as in FMI 2.0.
  *   4. Status rule: the worst of the call's own result and of what the slave logged during it,
- *      capped at fmi3Error (the bridge's rule).  Messages go to logMessage only while logging is on
- *      (FMI 3.0: "if loggingOn == fmi3False ... logMessage is not called"), except the reason of a
- *      failed instantiation.
+ *      capped at fmi3Error (the bridge's rule).  Debug messages (status OK) go to logMessage only while
+ *      logging is on; warnings, discards and errors always (as the FMI 2.0 binary and the Reference FMUs do:
+ *      fmusim leaves logging off, and a discarded step then said nothing).
  */
-#define _GNU_SOURCE /* getline, dl_iterate_phdr */
+#define _GNU_SOURCE /* dl_iterate_phdr */
 #include "fmi3Functions.h"
 #include "loader_common.h"
 
@@ -116,7 +116,7 @@ static int read_table(Instance *c, const char *resources, char *message, size_t 
 {
     char path[PATH_SIZE + 32];
     snprintf(path, sizeof path, "%s/" TABLE, resources);
-    FILE *file = fopen(path, "r");
+    FILE *file = obsfmu_fopen(path, "r");
     if (file == NULL) {
         snprintf(message, size, "cannot read %s: not an obsfmu FMI 3.0 FMU", path);
         return -1;
@@ -124,7 +124,7 @@ static int read_table(Instance *c, const char *resources, char *message, size_t 
     char *line = NULL;
     size_t capacity = 0;
     int failed = 0;
-    while (!failed && getline(&line, &capacity, file) != -1) { /* lines grow with the arrays (A of n x n) */
+    while (!failed && read_line(&line, &capacity, file) != -1) { /* lines grow with the arrays (A of n x n) */
         if (line[0] == '#' || line[0] == '\n') continue;
         unsigned vr;
         char type, causality, name[256];
@@ -190,7 +190,7 @@ static void relay(fmi2ComponentEnvironment environment, fmi2String name, fmi2Sta
 {
     (void)name;
     Instance *c = (Instance *)environment;
-    if (c == NULL || c->logMessage == NULL || !c->logging_on) return;
+    if (c == NULL || c->logMessage == NULL || (!c->logging_on && status == fmi2OK)) return;
     char text[8192], escaped[16384];
     va_list arguments;
     va_start(arguments, message);

@@ -17,6 +17,13 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
+#ifdef _WIN32
+#define WIN32_LEAN_AND_MEAN
+#define NOGDI /* no wingdi.h: its ERROR macro is a state name of the loader */
+#include <windows.h>
+#undef ERROR
+#endif
 
 #include "fmi2FunctionTypes.h"
 
@@ -137,6 +144,64 @@ static const char *obsfmu_category(fmi2Status status)
     }
 }
 
+/* ------------------------------------------------------------------ files, by UTF-8 path on every platform */
+
+#ifdef _WIN32
+/* A UTF-8 path as the UTF-16 path Windows' wide-character calls take, '/' turned into '\\' (LoadLibraryEx's
+ * LOAD_WITH_ALTERED_SEARCH_PATH needs backslashes); malloc'ed, NULL when it is not UTF-8 (or out of memory). */
+static inline wchar_t *obsfmu_wide(const char *path)
+{
+    int n = MultiByteToWideChar(CP_UTF8, MB_ERR_INVALID_CHARS, path, -1, NULL, 0);
+    wchar_t *wide = n > 0 ? malloc((size_t)n * sizeof(wchar_t)) : NULL;
+    if (wide == NULL || MultiByteToWideChar(CP_UTF8, MB_ERR_INVALID_CHARS, path, -1, wide, n) != n) {
+        free(wide);
+        return NULL;
+    }
+    for (wchar_t *c = wide; *c; c++)
+        if (*c == L'/') *c = L'\\';
+    return wide;
+}
+
+/* A UTF-16 string as UTF-8 into out (size bytes); "" when it does not fit. */
+static inline void obsfmu_narrow(const wchar_t *wide, char *out, size_t size)
+{
+    if (size == 0) return;
+    if (WideCharToMultiByte(CP_UTF8, 0, wide, -1, out, (int)size, NULL, NULL) <= 0) out[0] = '\0';
+}
+
+static inline FILE *obsfmu_fopen(const char *path, const char *mode)
+{
+    wchar_t *wide = obsfmu_wide(path), wmode[8];
+    size_t i = 0;
+    for (; mode[i] && i < 7; i++) wmode[i] = (wchar_t)mode[i];
+    wmode[i] = L'\0';
+    FILE *file = wide ? _wfopen(wide, wmode) : NULL;
+    free(wide);
+    return file;
+}
+
+/* 1 if `path` exists; *directory: it is a folder */
+static inline int obsfmu_stat(const char *path, int *directory)
+{
+    wchar_t *wide = obsfmu_wide(path);
+    DWORD attributes = wide ? GetFileAttributesW(wide) : INVALID_FILE_ATTRIBUTES;
+    free(wide);
+    if (attributes == INVALID_FILE_ATTRIBUTES) return 0;
+    if (directory) *directory = (attributes & FILE_ATTRIBUTE_DIRECTORY) != 0;
+    return 1;
+}
+#else
+#define obsfmu_fopen fopen
+
+static inline int obsfmu_stat(const char *path, int *directory)
+{
+    struct stat info;
+    if (stat(path, &info) != 0) return 0;
+    if (directory) *directory = S_ISDIR(info.st_mode);
+    return 1;
+}
+#endif
+
 /* ------------------------------------------------------------------ the resources folder */
 
 static int obsfmu_hex(char digit)
@@ -147,7 +212,8 @@ static int obsfmu_hex(char digit)
     return -1;
 }
 
-/* file:///a%20b/resources, file:/a/resources or a plain path -> "/a b/resources" (malloc'ed). */
+/* file:///a%20b/resources, file:/a/resources or a plain path -> "/a b/resources" (malloc'ed); on Windows
+ * file:///C:/a/resources -> "C:/a/resources" (the URI's UTF-8 bytes, decoded; obsfmu_wide for the API). */
 static char *obsfmu_resource_path(const char *uri)
 {
     const char *path = uri;
@@ -168,8 +234,14 @@ static char *obsfmu_resource_path(const char *uri)
             decoded[j++] = path[i];
         }
     }
+#ifdef _WIN32
+    while (j > 1 && (decoded[j - 1] == '/' || decoded[j - 1] == '\\')) j--;
+    decoded[j] = '\0';
+    if (decoded[0] == '/' && decoded[1] && decoded[2] == ':') memmove(decoded, decoded + 1, j); /* /C:/x -> C:/x */
+#else
     while (j > 1 && decoded[j - 1] == '/') j--;
     decoded[j] = '\0';
+#endif
     return decoded;
 }
 
@@ -180,7 +252,7 @@ static char *obsfmu_read_record(const char *resources)
     char *name = malloc(length);
     if (name == NULL) return NULL;
     snprintf(name, length, "%s/%s", resources, OBSFMU_RECORD);
-    FILE *file = fopen(name, "rb");
+    FILE *file = obsfmu_fopen(name, "rb");
     free(name);
     if (file == NULL) return NULL;
     char *text = NULL;
@@ -204,8 +276,34 @@ static char *obsfmu_read_record(const char *resources)
     return text;
 }
 
-/* Copy the value of `key` (a line "key=value") into out; "" when absent or too long. */
+/* The platform's own keys of the record: an FMU with binaries for several platforms (obsfmu build --platform
+ * linux64,win64) records what differs per platform -- the bridge, the Python, its runtime -- as "win64.<key>"
+ * (fmus/builder.py); a loader of that platform reads them first. */
+#if defined(_WIN32)
+#define OBSFMU_PLATFORM_KEYS "win64."
+#elif defined(__APPLE__)
+#define OBSFMU_PLATFORM_KEYS "darwin64."
+#else
+#define OBSFMU_PLATFORM_KEYS ""
+#endif
+
+static int obsfmu_find_value(const char *record, const char *key, char *out, size_t size);
+
+/* Copy the value of `key` (a line "key=value", or this platform's "<platform>.key=value", which wins even when
+ * empty) into out; "" when absent or too long. */
 static const char *obsfmu_record_value(const char *record, const char *key, char *out, size_t size)
+{
+    char own[256];
+    if (OBSFMU_PLATFORM_KEYS[0] && strlen(key) + sizeof OBSFMU_PLATFORM_KEYS < sizeof own) {
+        snprintf(own, sizeof own, "%s%s", OBSFMU_PLATFORM_KEYS, key);
+        if (obsfmu_find_value(record, own, out, size)) return out;
+    }
+    obsfmu_find_value(record, key, out, size);
+    return out;
+}
+
+/* 1 if the record has a line "key=value" (its value, or "" when too long, copied into out); else 0 and "". */
+static int obsfmu_find_value(const char *record, const char *key, char *out, size_t size)
 {
     size_t key_length = strlen(key);
     out[0] = '\0';
@@ -217,10 +315,10 @@ static const char *obsfmu_record_value(const char *record, const char *key, char
                 memcpy(out, value, length);
                 out[length] = '\0';
             }
-            break;
+            return 1;
         }
     }
-    return out;
+    return 0;
 }
 
 #endif

@@ -1,24 +1,22 @@
-/* The few POSIX calls of the loaders, over the Win32 API: a win64 build of the FMI 2.0 loader (docs/portability.md,
- * "Windows and macOS").  Included by loader_common.h instead of <dlfcn.h> and <link.h> when _WIN32 is defined;
- * pthread (winpthreads), stat, strtok_r and the rest come with MinGW-w64.
+/* The few POSIX calls of the loaders, over the Win32 API: the win64 build of the loaders (docs/portability.md,
+ * "Windows").  Included by loader_common.h instead of <dlfcn.h> when _WIN32 is defined; pthread (winpthreads),
+ * stat, strtok_r and the rest come with MinGW-w64.
  *
- *   dlopen(path, mode)        LoadLibraryExA (RTLD_NOLOAD: GetModuleHandleExA; RTLD_NODELETE: pinned)
+ *   dlopen(path, mode)        LoadLibraryExW on the UTF-8 path as UTF-16 with backslashes, with
+ *                             LOAD_WITH_ALTERED_SEARCH_PATH: a DLL's own folder is searched for the DLLs it
+ *                             needs (the bridge next to the loader, vcruntime140.dll next to python3X.dll);
+ *                             RTLD_NOLOAD: GetModuleHandleExW, RTLD_NODELETE: pinned
  *   dlsym(handle, name)       GetProcAddress; RTLD_DEFAULT: every module of the process, in load order
  *   dlclose, dlerror          FreeLibrary, the last error's code
- *   dl_iterate_phdr           EnumProcessModules + GetModuleFileNameA (the program first, unnamed)
  *
- * Windows has no global symbol namespace: RTLD_GLOBAL changes nothing (numpy's extension modules link
- * python3X.dll by name, which is what a Windows CPython provides). */
+ * Windows has no global symbol namespace: RTLD_GLOBAL changes nothing (the bridge and numpy's extension
+ * modules link python3X.dll by name, and Windows hands them the one already loaded). */
 #ifndef OBSFMU_WIN32_DLFCN_H
 #define OBSFMU_WIN32_DLFCN_H
 
 #define PSAPI_VERSION 2 /* EnumProcessModules from kernel32 (K32EnumProcessModules): no psapi.dll */
-#define WIN32_LEAN_AND_MEAN
-#define NOGDI           /* no wingdi.h: its ERROR macro is a state name of the loader */
-#include <windows.h>
+#include "obsfmu_native.h" /* windows.h, obsfmu_wide */
 #include <psapi.h>
-#include <stdio.h>
-#undef ERROR
 
 #define RTLD_LAZY 0x1
 #define RTLD_NOW 0x2
@@ -29,27 +27,36 @@
 #define RTLD_DEFAULT ((void *)0)
 #define OBSFMU_MODULES 1024
 
-static char obsfmu_dl_message[128];
+static char obsfmu_dl_message[160];
 
 static void obsfmu_dl_failed(const char *what)
 {
-    snprintf(obsfmu_dl_message, sizeof obsfmu_dl_message, "%s failed (Windows error %lu)", what,
-             (unsigned long)GetLastError());
+    DWORD code = GetLastError();
+    snprintf(obsfmu_dl_message, sizeof obsfmu_dl_message, "%s failed (Windows error %lu%s)", what,
+             (unsigned long)code, code == ERROR_MOD_NOT_FOUND ? ": it, or a DLL it needs, is not found"
+                                  : code == ERROR_BAD_EXE_FORMAT ? ": not a 64-bit Windows DLL" : "");
 }
 
 static void *dlopen(const char *path, int mode)
 {
     HMODULE module = NULL;
+    wchar_t *wide = obsfmu_wide(path);
+    if (wide == NULL) {
+        snprintf(obsfmu_dl_message, sizeof obsfmu_dl_message, "the path is not UTF-8");
+        return NULL;
+    }
     if (mode & RTLD_NOLOAD) {
         DWORD flags = (mode & RTLD_NODELETE) ? GET_MODULE_HANDLE_EX_FLAG_PIN : 0;
-        if (!GetModuleHandleExA(flags, path, &module)) module = NULL;
+        if (!GetModuleHandleExW(flags, wide, &module)) module = NULL;
     } else {
-        module = LoadLibraryExA(path, NULL, LOAD_WITH_ALTERED_SEARCH_PATH); /* its own folder for its DLLs */
+        module = LoadLibraryExW(wide, NULL, LOAD_WITH_ALTERED_SEARCH_PATH);
     }
-    if (module == NULL) obsfmu_dl_failed(mode & RTLD_NOLOAD ? "GetModuleHandleExA" : "LoadLibraryExA");
+    if (module == NULL) obsfmu_dl_failed(mode & RTLD_NOLOAD ? "GetModuleHandleExW" : "LoadLibraryExW");
+    free(wide);
     return (void *)module;
 }
 
+/* The modules of the process, in load order (the program first); their number. */
 static DWORD obsfmu_modules(HMODULE *modules)
 {
     DWORD bytes = 0;
@@ -73,24 +80,5 @@ static void *dlsym(void *handle, const char *name)
 static int dlclose(void *handle) { return FreeLibrary((HMODULE)handle) ? 0 : -1; }
 
 static char *dlerror(void) { return obsfmu_dl_message; }
-
-struct dl_phdr_info {
-    const char *dlpi_name; /* the only member the loaders read */
-};
-
-static int dl_iterate_phdr(int (*callback)(struct dl_phdr_info *, size_t, void *), void *data)
-{
-    HMODULE modules[OBSFMU_MODULES];
-    DWORD count = obsfmu_modules(modules);
-    char name[MAX_PATH];
-    for (DWORD i = 0; i < count; i++) {
-        if (i == 0) name[0] = '\0'; /* the program itself, unnamed as on Linux */
-        else if (!GetModuleFileNameA(modules[i], name, sizeof name)) continue;
-        struct dl_phdr_info info = {name};
-        int stop = callback(&info, sizeof info, data);
-        if (stop) return stop;
-    }
-    return 0;
-}
 
 #endif

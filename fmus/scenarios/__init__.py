@@ -23,7 +23,8 @@ from typing import TYPE_CHECKING
 import fmpy
 from fmpy import read_model_description
 
-from ..builder import build_fmu, is_current
+from .. import native
+from ..builder import build_fmu, is_current, platforms_of
 from ..fmi3 import build_folder
 from ..fmi3.elements import scalar_variables
 from ..runtime.definition import FmuDefinition, experiment
@@ -142,34 +143,43 @@ def _items(scenario: Scenario):
         yield definition, tuple(extra_modules)
 
 
-def _damage(path: Path) -> str | None:
+def _damage(path: Path, platforms=None) -> str | None:
     """Why a cached FMU cannot be used as it is (None: it can); its binary is looked for where its FMI version
-    (its modelDescription) has it."""
+    (its modelDescription) has it, for each of ``platforms`` (default: this machine's)."""
     try:
         description = read_model_description(str(path))
     except Exception as exc:  # lxml, zip and schema errors alike: the file is damaged
         return f"its modelDescription.xml cannot be read ({type(exc).__name__}: {exc})"
     if description.coSimulation is None:
         return "it has no co-simulation interface"
-    folder = fmpy.platform if description.fmiVersion.startswith("2") else fmpy.platform_tuple
-    binary = f"binaries/{folder}/{description.coSimulation.modelIdentifier}{fmpy.sharedLibraryExtension}"
+    identifier = description.coSimulation.modelIdentifier
     with zipfile.ZipFile(path) as archive:
-        if binary not in archive.namelist():
+        names = set(archive.namelist())
+    for platform in platforms_of(platforms):
+        target = native.target(platform)
+        if target is native.host():
+            folder = fmpy.platform if description.fmiVersion.startswith("2") else fmpy.platform_tuple
+        else:
+            folder = target.name if description.fmiVersion.startswith("2") else target.fmi3_folder
+        binary = f"binaries/{folder}/{identifier}{target.suffix}"
+        if binary not in names:
             return f"it has no binary {binary}"
     return None
 
 
-def _ensure(items, build_dir: Path, force: bool, fmi_version: int, standalone: bool = False) -> dict[str, Path]:
+def _ensure(items, build_dir: Path, force: bool, fmi_version: int, standalone: bool = False,
+            platforms=None) -> dict[str, Path]:
     paths = {}
     folder = build_folder(build_dir, fmi_version)
     for definition, extra_modules in items:
         path = folder / f"{definition.model_name}.fmu"
-        if force or not is_current(path, definition, extra_modules, fmi_version, standalone=standalone):
-            build_fmu(definition, folder, extra_modules, fmi_version, standalone=standalone)
-        elif (problem := _damage(path)) is not None:
+        if force or not is_current(path, definition, extra_modules, fmi_version, standalone=standalone,
+                                   platforms=platforms):
+            build_fmu(definition, folder, extra_modules, fmi_version, standalone=standalone, platforms=platforms)
+        elif (problem := _damage(path, platforms)) is not None:
             print(f"obsfmu: note: {path}: {problem}; rebuilding it", file=sys.stderr)
-            build_fmu(definition, folder, extra_modules, fmi_version, standalone=standalone)
-        problem = _damage(path)
+            build_fmu(definition, folder, extra_modules, fmi_version, standalone=standalone, platforms=platforms)
+        problem = _damage(path, platforms)
         if problem is not None:
             raise SimulationError(f"{path}: {problem} even after rebuilding it")
         paths[definition.model_name] = path
@@ -177,19 +187,20 @@ def _ensure(items, build_dir: Path, force: bool, fmi_version: int, standalone: b
 
 
 def ensure_fmus(scenario: Scenario, build_dir: Path, force: bool = False, fmi_version: int = 2,
-                standalone: bool = False) -> dict[str, Path]:
+                standalone: bool = False, platforms=None) -> dict[str, Path]:
     """Build the scenario's FMUs into ``build_dir`` unless current, intact ones are there.
 
     A cached FMU built from the same sources but damaged since (unreadable modelDescription,
     missing binary) is rebuilt with a note on stderr.  FMI 3.0 FMUs (``fmi_version=3``) go to
     ``build_dir/fmi3`` (:func:`fmus.fmi3.build_folder`).  ``standalone``: FMUs that carry their Python
-    (:mod:`fmus.standalone`); an FMU of the other build is rebuilt.
+    (:mod:`fmus.standalone`); an FMU of the other build is rebuilt.  ``platforms``: what the FMUs have binaries
+    for (default this machine's; ``"linux64,win64"``, :func:`fmus.builder.build_fmu`).
     """
-    return _ensure(_items(scenario), build_dir, force, fmi_version, standalone)
+    return _ensure(_items(scenario), build_dir, force, fmi_version, standalone, platforms)
 
 
 def ensure_all(scenarios, build_dir: Path, force: bool = False, fmi_version: int = 2,
-               standalone: bool = False) -> dict[str, Path]:
+               standalone: bool = False, platforms=None) -> dict[str, Path]:
     """Every distinct FMU of ``scenarios``, each built once (``ltv-ls`` and ``ltv-ls-bounded`` share theirs).
 
     Two scenarios naming the same model must define it identically (else :class:`SimulationError`).
@@ -201,7 +212,8 @@ def ensure_all(scenarios, build_dir: Path, force: bool = False, fmi_version: int
             if (known[0].to_json(), known[1]) != (definition.to_json(), extra_modules):
                 raise SimulationError(f"{definition.model_name}: scenarios {known[2]!r} and {scenario.name!r} "
                                       f"define this FMU differently")
-    return _ensure(((d, extra) for d, extra, _ in distinct.values()), build_dir, force, fmi_version, standalone)
+    return _ensure(((d, extra) for d, extra, _ in distinct.values()), build_dir, force, fmi_version, standalone,
+                   platforms)
 
 
 _OVERRIDE = re.compile(r"^(?P<instance>[A-Za-z_]\w*)\.(?P<variable>[^=]+)=(?P<value>.+)$")

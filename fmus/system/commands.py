@@ -93,7 +93,8 @@ def definitions_of(path: Path | str) -> list:
     return definitions
 
 
-def build_definitions(definitions: list, out: Path, fmi_version: int = 2, standalone: bool = False) -> list[Path]:
+def build_definitions(definitions: list, out: Path, fmi_version: int = 2, standalone: bool = False,
+                      platforms=None) -> list[Path]:
     """Build ``definitions`` into ``out``; an error leaves nothing half-written.
 
     Parameters
@@ -105,6 +106,8 @@ def build_definitions(definitions: list, out: Path, fmi_version: int = 2, standa
     fmi_version : {2, 3}
     standalone : bool
         FMUs that carry their Python runtime (:func:`fmus.builder.build_fmu`).
+    platforms : str or sequence of str, optional
+        What they have binaries for (default: this machine's; ``"linux64,win64"``).
 
     Returns
     -------
@@ -117,8 +120,8 @@ def build_definitions(definitions: list, out: Path, fmi_version: int = 2, standa
     folder.mkdir(parents=True, exist_ok=True)
     temporary = Path(tempfile.mkdtemp(prefix=".obsfmu_build_", dir=folder))
     try:
-        built = [build_fmu(definition, temporary, fmi_version=fmi_version, standalone=standalone)
-                 for definition in definitions]
+        built = [build_fmu(definition, temporary, fmi_version=fmi_version, standalone=standalone,
+                           platforms=platforms) for definition in definitions]
         paths = []
         for fmu in built:
             target = folder / fmu.name

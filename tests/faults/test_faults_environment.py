@@ -1,7 +1,8 @@
 """Faults of the environment an FMU or a command runs in (issue 29, findings 8 and 10).
 
-* an FMU run by a Python with other numpy / scipy versions than it was built and tested with says so in
-  its log, once per process and FMU, at Warning level (``fmus.runtime.slave.versions``);
+* an FMU run by a Python with another numpy version than it was built and tested with says so in its log, once
+  per process and FMU, at Warning level (``fmus.runtime.slave.versions``; scipy is not compared: no FMU imports it
+  at run time);
 * a cache on a read-only file system (``OBSFMU_CACHE``, ``HOME``): every command still works, on a private
   temporary cache, said once on stderr naming the folder and the variable (``fmus.caches``).
 """
@@ -38,7 +39,7 @@ def _version_lines(probe: Probe) -> list[tuple[int, str]]:
     return [(status, text) for status, text in probe.log if "was built and tested with" in text]
 
 
-def test_an_fmu_of_other_numpy_and_scipy_versions_says_so_once(ship_fmus, tmp_path):
+def test_an_fmu_of_another_numpy_version_says_so_once(ship_fmus, tmp_path):
     """Before: an FMU built on numpy 2.4 ran on numpy 1.26 with outputs 1e-6 apart and no word."""
     from fmus.runtime.slave.versions import running
     fmu = ship_fmus["ship_plant"]
@@ -50,13 +51,24 @@ def test_an_fmu_of_other_numpy_and_scipy_versions_says_so_once(ship_fmus, tmp_pa
     now = running()
     other = _recorded_as(fmu, tmp_path / "ship_plant.fmu", {"numpy": "1.26.4", "scipy": "1.11.4"})
     first, second = Probe(other, name="first"), Probe(other, name="second")
-    assert _version_lines(first) == [(WARNING, f"ship_plant was built and tested with numpy 1.26.4, scipy 1.11.4; "
-                                               f"this Python runs numpy {now['numpy']}, scipy {now['scipy']}: "
+    assert _version_lines(first) == [(WARNING, f"ship_plant was built and tested with numpy 1.26.4; "
+                                               f"this Python runs numpy {now['numpy']}: "
                                                f"results may differ in the last digits")], first.messages()
     assert _version_lines(second) == [], "once per process and FMU"
     assert first.step(0.01) == 0 and second.step(0.01) == 0
     first.free()
     second.free()
+
+
+def test_scipy_is_not_compared_no_fmu_imports_it_at_run_time(ship_fmus, tmp_path):
+    """Every standalone FMU in a process without Python warned "... this Python runs numpy 2.4.6, scipy none"
+    (issue 35): an FMU whose record differs in scipy alone says nothing."""
+    from fmus.runtime.slave.versions import running
+    other = _recorded_as(ship_fmus["ship_plant"], tmp_path / "ship_plant.fmu",
+                         {"numpy": running()["numpy"], "scipy": "0.1"})
+    probe = Probe(other, name="scipy")
+    assert _version_lines(probe) == [], probe.messages()
+    probe.free()
 
 
 def _read_only(folder: Path, command: str, **env) -> subprocess.CompletedProcess:

@@ -107,6 +107,12 @@ def test_exported_files_describe_the_system(build_dir, tmp_path):
     assert {"SystemStructure.ssd", "resources/ship_plant.fmu", "resources/ship_observer.fmu"} <= names
     parameters = {p.get("name"): p[0].get("value") for p in ssd.iter("{http://ssp-standard.org/SSP1/SystemStructureParameterValues}Parameter")}
     assert parameters["x0[1]"] == "0.07" and parameters["y_interpolation"] == "1"
+    # OMSimulator 3.0 aborts on a system without its master annotation ("[NewSystem] internal error"); a fixed-step
+    # master at the export's step runs it (issue 35)
+    system = ssd.find("{http://ssp-standard.org/SSP1/SystemStructureDescription}System")
+    master = system.find(".//{https://raw.githubusercontent.com/OpenModelica/OMSimulator/master/schema/oms.xsd}"
+                         "FixedStepMaster")
+    assert master is not None and float(master.get("stepSize")) == get("ship").step
 
 
 def test_export_through_the_command_line(build_dir, tmp_path, capsys):

@@ -1,9 +1,10 @@
-"""The numpy and scipy an FMU was built and tested with, against those of the Python that runs it.
+"""The numpy an FMU was built and tested with, against the one of the Python that runs it.
 
-The builder records them in ``resources/build_info.json`` (:func:`running`); at instantiation the slave
-compares them with the running ones (:func:`note`) and, when they differ, logs one line at Warning level,
-once per process and FMU: results may then differ in the last digits (an FMU of numpy 2.4 run on numpy 1.26
-gave ltv outputs 1e-6 apart).
+The builder records it in ``resources/build_info.json`` (:func:`running`; a win64 FMU also the numpy of the
+Windows runtime it carries, ``built_with_win64``); at instantiation the slave compares it with the running one
+(:func:`note`) and, when they differ, logs one line at Warning level, once per process and FMU: results may
+then differ in the last digits (an FMU of numpy 2.4 run on numpy 1.26 gave ltv outputs 1e-6 apart).  scipy is
+not compared: no FMU imports it at run time (the design code that does runs when the FMU is built).
 """
 
 from __future__ import annotations
@@ -16,12 +17,12 @@ from pathlib import Path
 __all__ = ["BUILD_INFO", "LIBRARIES", "running", "note"]
 
 BUILD_INFO = "build_info.json"
-LIBRARIES = ("numpy", "scipy")
+LIBRARIES = ("numpy",)
 _noted: set[tuple] = set()               # (model, source hash, recorded versions) already logged
 
 
 def running() -> dict[str, str]:
-    """``{"numpy": "2.4.6", "scipy": "1.17.1"}`` of this Python (``"none"``: not installed)."""
+    """``{"numpy": "2.4.6"}`` of this Python (``"none"``: not installed)."""
     found = {}
     for name in LIBRARIES:
         module = sys.modules.get(name)
@@ -37,7 +38,8 @@ def note(resources: Path, model: str) -> str | None:
     time in this process for this FMU; otherwise (or for an FMU without a record) None."""
     try:
         info = json.loads((Path(resources) / BUILD_INFO).read_text())
-        recorded = {name: str(info["built_with"][name]) for name in LIBRARIES}
+        built_with = info.get("built_with_win64") if sys.platform == "win32" else None
+        recorded = {name: str((built_with or info["built_with"])[name]) for name in LIBRARIES}
     except (OSError, ValueError, KeyError, TypeError):
         return None
     now = running()

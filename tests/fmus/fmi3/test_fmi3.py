@@ -108,7 +108,7 @@ def test_declarations_follow_the_definition(every_fmu, every_fmu3):
 class Running:
     """One initialized FMI 3.0 instance (fmpy's FMU3Slave); inputs driven by small smooth signals."""
 
-    def __init__(self, path, name, intermediate=None, required=()):
+    def __init__(self, path, name, intermediate=None, required=(), logging_on=True):
         self.description = read_model_description(str(path))
         self.messages = []
         self.slave = FMU3Slave(guid=self.description.instantiationToken, unzipDirectory=extract(str(path)),
@@ -117,7 +117,7 @@ class Running:
         self.inputs = [v for v in variables if v.causality == "input"]
         self.outputs = [v.valueReference for v in variables if v.causality == "output"]
         self.count = sum(len(elements_of(v)) for v in variables if v.causality == "output")
-        self.slave.instantiate(loggingOn=True, logMessage=self._log, intermediateUpdate=intermediate,
+        self.slave.instantiate(loggingOn=logging_on, logMessage=self._log, intermediateUpdate=intermediate,
                                requiredIntermediateVariables=list(required))
         self.slave.enterInitializationMode(startTime=0.0)
         self.slave.exitInitializationMode()
@@ -179,6 +179,21 @@ def test_state_and_variable_step_capabilities_hold(every_fmu3):
         first.free()
         second.free()
     assert fixed == {"gpebo_plant", "gpebo_observer"}
+
+
+def test_a_discarded_step_says_why_with_logging_off(every_fmu3):
+    """fmusim instantiates with logging off: a discarded step said nothing (rc 2, no message); debug messages
+    stay off, but warnings, discards and errors are always given (issue 35, as the FMI 2.0 binary does)."""
+    running = Running(every_fmu3["ship_observer"][1], "quiet", logging_on=False)
+    try:
+        assert running.messages == []          # nothing at instantiation and initialization (OK-level only)
+        inputs = [(v.valueReference, len(elements_of(v))) for v in running.inputs]
+        running.slave.setFloat64([vr for vr, _ in inputs], [float("nan")] * sum(n for _, n in inputs))
+        with pytest.raises(Exception, match="2|Discard|discard"):
+            running.slave.doStep(0.0, 1e-3)
+        assert any(status == 2 and "not finite" in message for status, message in running.messages), running.messages
+    finally:
+        running.free()
 
 
 def test_no_event_mode_and_no_model_exchange(every_fmu3, tmp_path):

@@ -1,6 +1,8 @@
 /*
  * A small FMI 2.0 co-simulation importer in plain C: the test suite's non-Python host.
- * It does not link libpython; it loads FMUs with dlopen(RTLD_NOW) and calls the FMI C API.
+ * It does not link libpython; it loads FMUs with dlopen(RTLD_NOW) and calls the FMI C API.  Cross-compiled with
+ * MinGW-w64 it is a Windows host (win64 binaries, run under wine: test_windows.py).  A DIR or FILE may be
+ * percent-encoded (spaces: %20).
  *
  *   importer SCRIPT      runs the commands of SCRIPT (one per line, in order, in ONE process):
  *
@@ -34,11 +36,51 @@
  *                                   must work; prints "abuse ID WHAT STATUS" per call
  *   parallel NAME NAME              instantiate the two FMUs at once from two threads (both the first
  *                                   instantiations of the process when nothing ran before), step, free
+ *   cycles NAME N                   N instantiate/initialize/step/free cycles; prints "memory K BYTES" on the way
  *   clear                           forget the declarations (a next system follows; libraries stay loaded)
  *
  * Log messages of the FMUs are printed as "log INSTANCE STATUS MESSAGE".
  */
+#ifdef _WIN32
+/* the win64 build (cross-compiled with MinGW-w64, run under wine: test_windows.py): dlopen over LoadLibraryExW */
+#define WIN32_LEAN_AND_MEAN
+#include <windows.h>
+#include <psapi.h>
+#include <stdio.h>
+#define PLATFORM "win64"
+#define PLATFORM3 "x86_64-windows"
+#define SUFFIX ".dll"
+#define RTLD_NOW 0
+#define RTLD_LOCAL 0
+static char dl_message[64];
+/* a UTF-8 path (the script's) as UTF-16 with backslashes: LoadLibraryExW finds the DLL's neighbours */
+static void *dlopen(const char *path, int mode)
+{
+    (void)mode;
+    wchar_t wide[4200];
+    if (!MultiByteToWideChar(CP_UTF8, 0, path, -1, wide, 4200)) return NULL;
+    for (wchar_t *c = wide; *c; c++) if (*c == L'/') *c = L'\\';
+    void *library = (void *)LoadLibraryExW(wide, NULL, LOAD_WITH_ALTERED_SEARCH_PATH);
+    snprintf(dl_message, sizeof dl_message, "LoadLibraryExW: Windows error %lu", (unsigned long)GetLastError());
+    return library;
+}
+static void *dlsym(void *library, const char *name) { return (void *)GetProcAddress((HMODULE)library, name); }
+/* fopen of a UTF-8 path (the script's CSV may be in a folder with non-ASCII letters) */
+static FILE *open_utf8(const char *path, const char *mode)
+{
+    wchar_t wide[4200], wmode[8];
+    if (!MultiByteToWideChar(CP_UTF8, 0, path, -1, wide, 4200) || !MultiByteToWideChar(CP_UTF8, 0, mode, -1, wmode, 8))
+        return NULL;
+    return _wfopen(wide, wmode);
+}
+static const char *dlerror(void) { return dl_message; }
+#else
 #include <dlfcn.h>
+#define PLATFORM "linux64"
+#define PLATFORM3 "x86_64-linux"
+#define SUFFIX ".so"
+#define open_utf8 fopen
+#endif
 #include <math.h>
 #include <pthread.h>
 #include <stdint.h>
@@ -120,15 +162,46 @@ static Fmu *find(const char *name)
     return NULL;
 }
 
+/* "%41%20b" -> "A b", in place (a script's DIR may hold spaces: the harness writes them percent-encoded) */
+static char *decoded(char *text)
+{
+    char *out = text;
+    for (const char *in = text; *in; in++) {
+        unsigned byte;
+        if (in[0] == '%' && sscanf(in + 1, "%2x", &byte) == 1) {
+            *out++ = (char)byte;
+            in += 2;
+        } else {
+            *out++ = *in;
+        }
+    }
+    *out = '\0';
+    return text;
+}
+
+/* the file URI of a UTF-8 path, as fmpy writes it: file:///a%20b/... (Windows: file:///C:/a%20b/...) */
+static void file_uri(char *uri, size_t size, const char *path)
+{
+    size_t n = (size_t)snprintf(uri, size, "file://%s", path[0] == '/' ? "" : "/");
+    for (const unsigned char *c = (const unsigned char *)path; *c && n + 4 < size; c++) {
+        if ((*c >= 'a' && *c <= 'z') || (*c >= 'A' && *c <= 'Z') || (*c >= '0' && *c <= '9') || strchr("-._~/:", *c))
+            uri[n++] = (char)*c;
+        else
+            n += (size_t)snprintf(uri + n, size - n, "%%%02X", *c);
+    }
+    uri[n] = '\0';
+}
+
 static void load(Fmu *f, const char *directory, const char *identifier)
 {
-    char path[4200];
-    snprintf(path, sizeof path, "%s/binaries/linux64/%s.so", directory, identifier);
+    char path[4200], resources[4200];
+    snprintf(path, sizeof path, "%s/binaries/" PLATFORM "/%s" SUFFIX, directory, identifier);
     void *library = dlopen(path, RTLD_NOW | RTLD_LOCAL);
     if (library == NULL) die("dlopen:", dlerror());
 #define LOAD(f_) if ((f->f_ = (fmi2##f_##TYPE *)dlsym(library, "fmi2" #f_)) == NULL) die("missing fmi2" #f_, path);
     FMI(LOAD)
-    snprintf(f->resources, sizeof f->resources, "file://%s/resources", directory);
+    snprintf(resources, sizeof resources, "%s/resources", directory);
+    file_uri(f->resources, sizeof f->resources, resources);
 }
 
 /* FMI 3.0 logMessage: printed like the FMI 2.0 logger's messages */
@@ -142,7 +215,7 @@ static void log3(fmi3InstanceEnvironment env, fmi3Status status, fmi3String cate
 static void load3(Fmu *f, const char *directory, const char *identifier)
 {
     char path[4200];
-    snprintf(path, sizeof path, "%s/binaries/x86_64-linux/%s.so", directory, identifier);
+    snprintf(path, sizeof path, "%s/binaries/" PLATFORM3 "/%s" SUFFIX, directory, identifier);
     void *library = dlopen(path, RTLD_NOW | RTLD_LOCAL);
     if (library == NULL) die("dlopen:", dlerror());
 #define LOAD3(f_) if ((f->v3.f_ = (fmi3##f_##TYPE *)dlsym(library, "fmi3" #f_)) == NULL) die("missing fmi3" #f_, path);
@@ -271,7 +344,7 @@ static fmi2Status do_step(Fmu *f, double t, double h)
 
 static void cosim(int linear, double start, double stop, double step, const char *file)
 {
-    FILE *csv = fopen(file, "w");
+    FILE *csv = open_utf8(file, "w");
     if (csv == NULL) die("cannot write", file);
     int feedthrough = 0;
     for (int i = 0; i < count; i++) {
@@ -645,6 +718,52 @@ static void parallel(Fmu *a, Fmu *b)
     pthread_barrier_destroy(&together);
 }
 
+/* The process's private memory in bytes (Windows: PrivateUsage; Linux: resident set). */
+static size_t process_memory(void)
+{
+#ifdef _WIN32
+    PROCESS_MEMORY_COUNTERS_EX counters;
+    if (!GetProcessMemoryInfo(GetCurrentProcess(), (PROCESS_MEMORY_COUNTERS *)&counters, sizeof counters)) return 0;
+    return counters.PrivateUsage;
+#else
+    long pages = 0, resident = 0;
+    FILE *statm = fopen("/proc/self/statm", "r");
+    if (statm == NULL) return 0;
+    if (fscanf(statm, "%ld %ld", &pages, &resident) != 2) resident = 0;
+    fclose(statm);
+    return (size_t)resident * 4096;
+#endif
+}
+
+/* N instantiate -> setup -> initialize -> step -> free cycles of one FMU; prints "memory K BYTES" after cycles
+ * 1, 10, 50, 100, ... and N (the caller judges the growth) */
+static void cycles(Fmu *f, long n)
+{
+    for (long k = 1; k <= n; k++) {
+        if (f->version == 3) {
+            fmi3Instance c = f->v3.InstantiateCoSimulation(f->name, f->guid, f->resources, fmi3False, fmi3False, fmi3False,
+                                                           fmi3False, NULL, 0, f, log3, NULL);
+            if (c == NULL) die("cycles: instantiation failed of", f->name);
+            if (f->v3.EnterInitializationMode(c, fmi3False, 0.0, 0.0, fmi3False, 0.0) > fmi3Warning
+                || f->v3.ExitInitializationMode(c) > fmi3Warning) die("cycles: initialization failed of", f->name);
+            fmi3Boolean event, terminate, early;
+            fmi3Float64 reached;
+            f->v3.DoStep(c, 0.0, 1e-3, fmi3True, &event, &terminate, &early, &reached);
+            f->v3.FreeInstance(c);
+        } else {
+            fmi2Component c = f->Instantiate(f->name, fmi2CoSimulation, f->guid, f->resources, &callbacks, fmi2False,
+                                             fmi2False);
+            if (c == NULL) die("cycles: instantiation failed of", f->name);
+            if (f->SetupExperiment(c, fmi2False, 0.0, 0.0, fmi2False, 0.0) > fmi2Warning
+                || f->EnterInitializationMode(c) > fmi2Warning || f->ExitInitializationMode(c) > fmi2Warning)
+                die("cycles: initialization failed of", f->name);
+            f->DoStep(c, 0.0, 1e-3, fmi2True);
+            f->FreeInstance(c);
+        }
+        if (k == 1 || k == 10 || k % 50 == 0 || k == n) printf("memory %ld %zu\n", k, process_memory());
+    }
+}
+
 int main(int argc, char **argv)
 {
     char line[16384];
@@ -660,12 +779,12 @@ int main(int argc, char **argv)
             Fmu *f = &fmus[count++];
             snprintf(f->name, sizeof f->name, "%s", tokens[1]);
             snprintf(f->guid, sizeof f->guid, "%s", tokens[4]);
-            load(f, tokens[2], tokens[3]);
+            load(f, decoded(tokens[2]), tokens[3]);
         } else if (!strcmp(tokens[0], "fmu3") && n == 5) {
             Fmu *f = &fmus[count++];
             snprintf(f->name, sizeof f->name, "%s", tokens[1]);
             snprintf(f->guid, sizeof f->guid, "%s", tokens[4]);
-            load3(f, tokens[2], tokens[3]);
+            load3(f, decoded(tokens[2]), tokens[3]);
         } else if (!strcmp(tokens[0], "output3") && n == 4) {
             Fmu *f = find(tokens[1]);
             f->output_array_vr[f->output_arrays++] = (fmi3ValueReference)atol(tokens[2]);
@@ -707,7 +826,7 @@ int main(int argc, char **argv)
             f->start_value[f->starts++] = strtod(tokens[4], NULL);
         } else if (!strcmp(tokens[0], "cosim") && n == 7 && !strcmp(tokens[1], "jacobi")) {
             cosim(!strcmp(tokens[2], "linear"), strtod(tokens[3], NULL), strtod(tokens[4], NULL),
-                  strtod(tokens[5], NULL), tokens[6]);
+                  strtod(tokens[5], NULL), decoded(tokens[6]));
         } else if (!strcmp(tokens[0], "calls") && n >= 7) {
             calls(tokens[1], find(tokens[2]), atol(tokens[3]), atol(tokens[4]), atol(tokens[5]), tokens + 6, n - 6);
         } else if (!strcmp(tokens[0], "clear") && n == 1) {
@@ -717,6 +836,8 @@ int main(int argc, char **argv)
             abuse(tokens[1], find(tokens[2]), tokens[3], tokens + 4, n - 4);
         } else if (!strcmp(tokens[0], "parallel") && n == 3) {
             parallel(find(tokens[1]), find(tokens[2]));
+        } else if (!strcmp(tokens[0], "cycles") && n == 3) {
+            cycles(find(tokens[1]), atol(tokens[2]));
         } else if (!strcmp(tokens[0], "bench") && n == 5) {
             bench(find(tokens[1]), atol(tokens[2]), atol(tokens[3]), atol(tokens[4]));
         } else {

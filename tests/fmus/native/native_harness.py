@@ -10,6 +10,7 @@ import shutil
 import subprocess
 from dataclasses import dataclass, field
 from pathlib import Path
+from urllib.parse import quote
 
 import numpy as np
 from fmpy import extract, read_model_description
@@ -78,22 +79,26 @@ class Unzipped:
         names = self.elements or self.variables
         return [name] if name in names else [n for n in names if n.startswith(name + "[")]
 
-    def declaration(self) -> str:
+    def declaration(self, host_path=str) -> str:
+        """The importer's ``fmu``/``fmu3`` line; ``host_path`` turns the folder into the importer's path (wine: a
+        drive letter), which goes percent-encoded (it may hold spaces)."""
         identifier = self.description.coSimulation.modelIdentifier
+        directory = quote(host_path(self.directory), safe="/:\\")
         if self.fmi3:
-            return f"fmu3 {self.instance} {self.directory} {identifier} {self.description.instantiationToken}"
-        return f"fmu {self.instance} {self.directory} {identifier} {self.description.guid}"
+            return f"fmu3 {self.instance} {directory} {identifier} {self.description.instantiationToken}"
+        return f"fmu {self.instance} {directory} {identifier} {self.description.guid}"
 
     def variables3(self, causality: str) -> list:
         return [v for v in self.description.modelVariables if v.causality == causality]
 
 
-def system_script(unzipped: list[Unzipped], connections, starts: dict[str, dict[str, float]]) -> list[str]:
+def system_script(unzipped: list[Unzipped], connections, starts: dict[str, dict[str, float]],
+                  host_path=str) -> list[str]:
     """The importer's declarations of a system: like :func:`fmus.master.wiring.wire`, element by element."""
     lines, offsets, offset = [], {}, 0
     by_name = {u.instance: u for u in unzipped}
     for u in unzipped:
-        lines.append(u.declaration())
+        lines.append(u.declaration(host_path))
         offsets[u.instance] = offset
         offset += len(u.outputs)
         if u.fmi3:  # whole variables: outputs in their order, every input variable
@@ -151,11 +156,13 @@ def parse_calls(stdout: str) -> dict[str, list[tuple[str, int, float, list[str]]
     return cases
 
 
-def scenario_script(scenario, fmus: dict, root: Path, csv: Path, stop: float, step: float) -> list[str]:
+def scenario_script(scenario, fmus: dict, root: Path, csv: Path, stop: float, step: float,
+                    host_path=str) -> list[str]:
     """The importer's script of one Jacobi run of ``scenario`` with the FMUs ``fmus`` (model -> .fmu, FMI 2.0
-    or 3.0), unzipped under ``root``, written to ``csv``, then ``clear``."""
+    or 3.0), unzipped under ``root``, written to ``csv``, then ``clear``; ``host_path`` turns a path of this
+    machine into the importer's (wine: ``Z:/...``)."""
     unzipped = [Unzipped.of(instance, fmus[model], Path(root) / instance) for instance, model, _ in scenario.components]
     starts = {instance: start for instance, _, start in scenario.components}
-    return system_script(unzipped, scenario.connections, starts) + [
-        f"cosim jacobi {scenario.coupling} 0 {stop!r} {step!r} {csv}", "clear"]
+    return system_script(unzipped, scenario.connections, starts, host_path) + [
+        f"cosim jacobi {scenario.coupling} 0 {stop!r} {step!r} {quote(host_path(str(csv)), safe='/:')}", "clear"]
 
