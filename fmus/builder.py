@@ -258,6 +258,9 @@ def _binaries(platform: str, fmi_version: int) -> tuple[str, Path, Path]:
         folder = f"binaries/{target.name}"
     else:
         folder = f"binaries/{fmi3.platform_tuple() if target is native.host() else target.fmi3_folder}"
+    if target is not native.host() and target.name == "win64":
+        from .native.windows import bridge_library
+        return folder, native.loader_library(fmi_version, platform), bridge_library()
     return folder, native.loader_library(fmi_version, platform), native.bridge_library(platform)
 
 

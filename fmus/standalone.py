@@ -40,6 +40,7 @@ from pathlib import Path
 
 from . import native
 from .native.bootstrap import RUNTIME_DESCRIPTION
+from .native.bytecode import sourceless
 
 __all__ = ["StandaloneError", "with_runtime", "runtime_files", "compiled_bundle", "sourceless", "identity", "describe",
            "SYSTEM_LIBRARIES", "RUNTIME"]
@@ -94,13 +95,6 @@ def _placed(path: Path) -> tuple[str | None, Path | None]:
     if path.is_relative_to(stdlib) and "site-packages" not in path.relative_to(stdlib).parts:
         return f"{_STDLIB}/{path.relative_to(stdlib).as_posix()}", None
     return None, None
-
-
-def sourceless(data: bytes, name: str) -> bytes:
-    """The source ``data`` compiled by this interpreter into a sourceless, unchecked hash-based .pyc (PEP 552):
-    valid wherever it lies, on any platform's Python of this minor version."""
-    code = compile(data, name, "exec", dont_inherit=True)
-    return importlib.util.MAGIC_NUMBER + (1).to_bytes(4, "little") + importlib.util.source_hash(data) + marshal.dumps(code)
 
 
 @functools.lru_cache(maxsize=4096)

@@ -171,12 +171,9 @@ def loader_library(fmi_version: int = 2, platform: str | None = None) -> Path:
 
 def bridge_library(platform: str | None = None) -> Path:
     """The bridge for this interpreter's Python version (compiled against its headers), for ``platform``
-    (default: this machine's; win64: :func:`fmus.native.windows.bridge_library`)."""
+    (default: this machine's; win64's is :func:`fmus.native.windows.bridge_library`, chosen by the builder)."""
     if platform and target(platform) is not host():
-        if platform != "win64":
-            raise NativeBuildError(f"--platform {platform}: its bridge is built on {platform} itself")
-        from .windows import bridge_library as windows_bridge
-        return windows_bridge()
+        raise NativeBuildError(f"--platform {platform}: its bridge is built on {platform} itself")
     include = sysconfig.get_paths()["include"]
     if not (Path(include) / "Python.h").is_file():
         raise NativeBuildError(f"Python.h not found in {include} (install the Python development headers, "

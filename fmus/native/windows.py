@@ -165,7 +165,7 @@ def _numpy_member(name: str, traced: set[str]) -> bool:
 def runtime_files(modules: dict[str, Path]) -> tuple[dict[str, bytes | Path], dict[str, str]]:
     """The files of ``resources/python-win64/`` (relative name -> bytes, or a file to copy) for an FMU whose code
     imports ``modules`` (the Linux trace: name -> file), and the record's ``win64.*`` keys."""
-    from ..standalone import sourceless
+    from .bytecode import sourceless
     home = embeddable()
     imported = set(modules)
     files: dict[str, bytes | Path] = {}

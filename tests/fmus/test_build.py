@@ -54,7 +54,7 @@ def test_validation_reports_exactly_what_fmpy_reports(ship_fmus, tmp_path):
 def test_build_builds_and_validates_each_distinct_fmu_once(monkeypatch, tmp_path, capsys):
     built, validated = [], []
 
-    def fake_build(definition, out_dir, extra_modules=(), fmi_version=2, standalone=False):
+    def fake_build(definition, out_dir, extra_modules=(), fmi_version=2, standalone=False, platforms=None):
         built.append(definition.model_name)
         path = Path(out_dir) / f"{definition.model_name}.fmu"
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -62,7 +62,7 @@ def test_build_builds_and_validates_each_distinct_fmu_once(monkeypatch, tmp_path
         return path
 
     monkeypatch.setattr(scenarios, "build_fmu", fake_build)
-    monkeypatch.setattr(scenarios, "_damage", lambda path: None)   # the fakes are empty files
+    monkeypatch.setattr(scenarios, "_damage", lambda path, platforms=None: None)   # the fakes are empty files
     monkeypatch.setattr(runs, "validate", lambda path: validated.append(Path(path).stem) or [])
     assert cli.main(["build", "--out", str(tmp_path)]) == 0
     distinct = {item.model_name if not isinstance(item, tuple) else item[0].model_name
