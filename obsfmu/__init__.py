@@ -183,7 +183,10 @@ def _overrides(values: dict | None) -> list[tuple[str, str, float]]:
         instance, dot, variable = name.partition(".")
         if not dot or not variable:
             raise ParameterError(f"set: {name!r}: expected 'instance.variable'")
-        overrides.append((instance, variable, float(value)))
+        if np.ndim(value):
+            overrides += [(instance, f"{variable}[{i}]", float(v)) for i, v in enumerate(np.ravel(value), start=1)]
+        else:
+            overrides.append((instance, variable, float(value)))
     return overrides
 
 
@@ -238,7 +241,7 @@ def run(target, *, stop_time: float | None = None, step: float | None = None, se
     stop_time, step, order, coupling, tolerance :
         As ``obsfmu run``'s options (None: the system's own).
     set : dict
-        Start values, ``{"plant.x0[1]": 0.1}`` (as ``--set``).
+        Start values, ``{"plant.x0[1]": 0.1, "observer.poles": [-10, -12]}`` (as ``--set``).
     """
     key = _key(target)
     raw, summary = _in.scenarios.run(key, _build_dir(build_dir), stop_time=stop_time, step=step, order=order,

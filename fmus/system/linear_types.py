@@ -148,13 +148,30 @@ def _define_observer(model_name: str, values: dict, context: Context) -> list:
     x_hat0 = np.zeros(model.n) if values["x_hat0"] is None else values["x_hat0"]
     if np.size(x_hat0) != model.n:
         raise ParameterError(f"{context.prefix}x_hat0: expected {model.n} entries, got {np.size(x_hat0)}")
-    return [observer_definition(model_name, model, N, x_hat0, units, values["description"], poles)]
+    return [observer_definition(model_name, model, N, x_hat0, units, values["description"], poles,
+                                 _design(table) if values["tunable"] else None)]
+
+
+def _design(table: dict):
+    """The design the FMU carries as a parameter and designs its gain from at initialisation (``--set``,
+    ``--vary`` and importers can change it), or None: the gain itself (given, or complex poles)."""
+    form = table.get("form", "binomial")
+    if "t_settle" in table:
+        return "t_settle", table["t_settle"], form
+    if "shift" in table:
+        return "shift", table["shift"], form
+    if "poles" in table and all(np.isreal(complex(p) if np.ndim(p) == 0 else complex(*p)) for p in table["poles"]):
+        return "poles", [float(np.real(p if np.ndim(p) == 0 else p[0])) for p in table["poles"]], form
+    return None
 
 
 register("luenberger", "Luenberger observer of an lti component: `x_hat' = A x_hat + B u + N (y - C x_hat - D u)`. "
          "Give exactly one of `poles`, `t_settle` (with `form`), `shift` or `N`. Inputs `u`, `y`; outputs `x_hat`, "
          "`y_hat`.", _design_fields("N", "n x p", "observer") + (
-             Field("x_hat0", "vector", "initial estimate (absent: zero)", None, example="[0, 0]"),),
+             Field("x_hat0", "vector", "initial estimate (absent: zero)", None, example="[0, 0]"),
+             Field("tunable", "boolean", "the design (`t_settle`, `shift` or real `poles`) is the FMU's parameter "
+                   "and N is designed from it at initialisation (`--set`, `--vary`, importers change it); false: "
+                   "N itself is the parameter", True, example="false"),),
          _define_observer, depends=("plant",))
 
 

@@ -113,3 +113,11 @@ def test_the_csv_names_survive_genfromtxt_as_docs_python_md_says(example, tmp_pa
     result.to_csv(tmp_path / "run.csv")
     table = np.genfromtxt(tmp_path / "run.csv", delimiter=",", names=True, deletechars="")
     assert np.array_equal(table["plant.x[1]"], result["plant.x[1]"])
+
+
+def test_the_cli_prints_its_version(capsys):
+    from importlib.metadata import version
+
+    from fmus.cli import main as cli
+    assert cli.main(["--version"]) == 0
+    assert capsys.readouterr().out.strip() == f"obsfmu {version('obsfmu')}"
