@@ -33,11 +33,22 @@ def worked_example():
 
 
 @pytest.fixture(scope="module")
-def example(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("api")
+def api_folder(tmp_path_factory):
+    return tmp_path_factory.mktemp("api")
+
+
+@pytest.fixture(scope="module")
+def example(api_folder):
     motor_ss, system = worked_example()
-    result = obsfmu.run(system.save(folder / "motor.toml"), build_dir=folder / "build")
+    result = obsfmu.run(system.save(api_folder / "motor.toml"), build_dir=api_folder / "build")
     return motor_ss, result
+
+
+def test_build_and_export_give_the_files(example, api_folder):
+    fmus = obsfmu.build(api_folder / "motor.toml", api_folder / "build")
+    assert sorted(p.name for p in fmus) == ["motor_observer.fmu", "motor_plant.fmu"]
+    ssp = obsfmu.export(api_folder / "motor.toml", "ssp", api_folder / "export", build_dir=api_folder / "build")
+    assert ssp.suffix == ".ssp" and ssp.stat().st_size > 0
 
 
 def test_the_worked_example_matches_forced_response(example):
