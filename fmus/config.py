@@ -54,9 +54,9 @@ from pathlib import Path
 
 import numpy as np
 
-from observers.checks import ParameterError, as_matrix, as_vector, require_hurwitz, require_positive
+from observers.checks import ParameterError, as_matrix, as_vector, require_hurwitz
 from observers.lti_model import StateSpace
-from observers.modal import (MAX_TRANSIENT_GROWTH, desired_poles, is_controllable, is_observable, observer_gain,
+from observers.modal import (MAX_TRANSIENT_GROWTH, desired_poles, shifted_poles, is_controllable, is_observable, observer_gain,
                              place, transient_growth)
 from observers.standard_forms import FORMS
 
@@ -225,15 +225,6 @@ def _poles(name: str, values) -> np.ndarray:
     return poles.real if not np.any(poles.imag) else poles
 
 
-def _shifted(name: str, A: np.ndarray, shift) -> np.ndarray:
-    """The plant's eigenvalues moved left by ``shift``: poles that keep the design well conditioned."""
-    shift = require_positive(name, shift)
-    eigenvalues = np.linalg.eigvals(A)
-    eigenvalues = np.where(np.abs(eigenvalues.imag) <= 1e-12 * max(1.0, np.abs(eigenvalues).max()),
-                           eigenvalues.real, eigenvalues)
-    return eigenvalues - shift
-
-
 def design_gain(section: str, table: dict, model: StateSpace, gain_name: str, shape, designer):
     """A gain given directly (checked: Hurwitz) or designed from poles / t_settle / shift.
 
@@ -251,7 +242,7 @@ def design_gain(section: str, table: dict, model: StateSpace, gain_name: str, sh
     n = model.n
     try:
         if "shift" in table:
-            poles = _shifted(f"{section}.shift", model.A, table["shift"])
+            poles = shifted_poles(model.A, table["shift"], f"{section}.shift")
         else:
             poles = desired_poles(n, poles=_poles(f"{section}.poles", table["poles"]) if "poles" in table else None,
                                   t_settle=table.get("t_settle"), form=form, name=f"{section}.poles")

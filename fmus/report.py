@@ -246,8 +246,8 @@ def _section(out_dir: Path, record: dict) -> str:
 <section id="{_e(name)}" class="scenario" data-scenario="{_e(name)}">
 <h2>{_e(name)}</h2>
 <p class="note">{_e(record['description'])}</p>
-<h3>What the paper claims</h3>
-<p class="claim">{_e(record['claim'] or 'No claim recorded for this scenario.')}</p>
+<h3>{'What the paper claims' if record['claim'] else 'What is compared'}</h3>
+<p class="claim">{_e(record['claim'] or 'Your own system: the comparisons of its [[report.compare]] tables.')}</p>
 {_claims_table(record, summary['metrics'])}
 <h3>What obsfmu measures</h3>
 <p class="note">The figure shows the whole run, t = 0 .. {_e(f"{record['end_time']:g} {record['time_unit']}")}.</p>

@@ -41,11 +41,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from .checks import ParameterError, as_matrix, as_vector, require_square
+from .checks import ParameterError, as_matrix, as_vector, require_positive, require_square
 from .standard_forms import standard_poles
 from .lti_model import StateSpace
 
 __all__ = [
+    "shifted_poles",
     "controllability_matrix",
     "observability_matrix",
     "controllable_dimension",
@@ -325,6 +326,15 @@ def observer_gain(A, C, poles, name: str = "poles") -> np.ndarray:
     if not is_observable(A, C):
         raise ParameterError("(A, C): not observable, an observer gain cannot be designed")
     return place(A.T, C.T, poles, name).T
+
+
+def shifted_poles(A, shift, name: str = "shift") -> np.ndarray:
+    """The eigenvalues of ``A`` moved left by ``shift`` (> 0): poles that keep the design well conditioned."""
+    shift = require_positive(name, shift)
+    eigenvalues = np.linalg.eigvals(A)
+    eigenvalues = np.where(np.abs(eigenvalues.imag) <= 1e-12 * max(1.0, np.abs(eigenvalues).max()),
+                           eigenvalues.real, eigenvalues)
+    return eigenvalues - shift
 
 
 def desired_poles(n: int, *, poles=None, t_settle=None, form: str = "binomial", name: str = "poles"):

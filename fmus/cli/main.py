@@ -35,8 +35,18 @@ def register(name: str, help: str, configure: Callable[[argparse.ArgumentParser]
     SUBCOMMANDS[name] = Subcommand(name, help, configure, handler, epilog)
 
 
+def _version() -> str:
+    """The installed distribution's version (``obsfmu --version``)."""
+    from importlib.metadata import PackageNotFoundError, version
+    try:
+        return version("obsfmu")
+    except PackageNotFoundError:
+        return "unknown (not installed)"
+
+
 def parser() -> argparse.ArgumentParser:
     main_parser = Parser(prog="obsfmu", description="Adaptive state observers as FMI 2.0 and 3.0 co-simulation FMUs")
+    main_parser.add_argument("--version", action="version", version=f"obsfmu {_version()}")
     commands = main_parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for command in SUBCOMMANDS.values():
         epilog = command.epilog() if callable(command.epilog) else command.epilog

@@ -220,20 +220,32 @@ _OVERRIDE = re.compile(r"^(?P<instance>[A-Za-z_]\w*)\.(?P<variable>[^=]+)=(?P<va
 
 
 def parse_overrides(items: list[str]) -> list[tuple[str, str, float]]:
-    """``["plant.x0[1]=0.1", ...]`` -> ``[("plant", "x0[1]", 0.1), ...]`` (finite numbers only)."""
+    """``["plant.x0[1]=0.1", "observer.poles=[-10,-12]", ...]`` -> ``[("plant", "x0[1]", 0.1),
+    ("observer", "poles[1]", -10.0), ("observer", "poles[2]", -12.0), ...]`` (finite numbers only; a list
+    sets a whole array parameter, element by element)."""
     parsed = []
     for item in items:
         match = _OVERRIDE.match(item.strip())
         if not match:
             raise SimulationError(f"--set {item!r}: expected INSTANCE.VARIABLE=VALUE")
-        try:
-            value = float(match["value"])
-        except ValueError:
-            raise SimulationError(f"--set {item!r}: {match['value']!r} is not a number") from None
-        if not math.isfinite(value):
-            raise SimulationError(f"--set {item!r}: the value must be a finite number")
-        parsed.append((match["instance"], match["variable"].strip(), value))
+        text, variable = match["value"].strip(), match["variable"].strip()
+        if text.startswith("[") and text.endswith("]"):
+            entries = [e.strip() for e in text[1:-1].split(",")]
+            parsed += [(match["instance"], f"{variable}[{i}]", _override_value(item, e))
+                       for i, e in enumerate(entries, start=1)]
+        else:
+            parsed.append((match["instance"], variable, _override_value(item, text)))
     return parsed
+
+
+def _override_value(item: str, text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise SimulationError(f"--set {item!r}: {text!r} is not a number") from None
+    if not math.isfinite(value):
+        raise SimulationError(f"--set {item!r}: the value must be a finite number")
+    return value
 
 
 def _variables(fmu: Path) -> dict:

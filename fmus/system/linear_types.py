@@ -142,19 +142,77 @@ def _define_observer(model_name: str, values: dict, context: Context) -> list:
         raise ParameterError(f"{context.prefix}plant: the pair (A, C) of {values['plant']!r} is not observable; "
                              "no observer can reconstruct the state")
     table = _table(values, ("poles", "t_settle", "shift", "form", "N"))
-    N, poles = _checked_gain(context, table, model, "N", (model.n, model.p),
-                             lambda p, name: observer_gain(model.A, model.C, p, name),
-                             lambda N: model.A - N @ model.C, "A - N C")
+    if values["Q"] is not None or values["R"] is not None:
+        N, poles, table = _kalman(values, context, model, table), None, {}
+    else:
+        N, poles = _checked_gain(context, table, model, "N", (model.n, model.p),
+                                 lambda p, name: observer_gain(model.A, model.C, p, name),
+                                 lambda N: model.A - N @ model.C, "A - N C")
     x_hat0 = np.zeros(model.n) if values["x_hat0"] is None else values["x_hat0"]
     if np.size(x_hat0) != model.n:
         raise ParameterError(f"{context.prefix}x_hat0: expected {model.n} entries, got {np.size(x_hat0)}")
-    return [observer_definition(model_name, model, N, x_hat0, units, values["description"], poles)]
+    poles = np.linalg.eigvals(model.A - N @ model.C) if poles is None else poles
+    return [observer_definition(model_name, model, N, x_hat0, units, values["description"], poles,
+                                 _design(table) if values["tunable"] else None)]
+
+
+def _covariance(where: str, value, size: int, definite: bool) -> np.ndarray:
+    value = np.asarray(value, dtype=float)
+    if value.shape != (size, size):
+        raise ParameterError(f"{where}: expected a {size} x {size} matrix, got {value.shape[0]} x {value.shape[1]}")
+    if not np.allclose(value, value.T, rtol=1e-12, atol=0.0):
+        raise ParameterError(f"{where}: a covariance must be symmetric")
+    smallest = np.linalg.eigvalsh(value).min()
+    if smallest <= 0 if definite else smallest < -1e-12 * max(1.0, np.abs(value).max()):
+        raise ParameterError(f"{where}: a covariance must be positive {'definite' if definite else 'semidefinite'} "
+                             f"(smallest eigenvalue {smallest:.3g})")
+    return value
+
+
+def _kalman(values: dict, context: Context, model, table: dict) -> np.ndarray:
+    """The steady-state Kalman gain (LQE) N = P C' R^-1, P the stabilising solution of the continuous Riccati
+    equation A P + P A' - P C' R^-1 C P + Q = 0 (process noise entering every state: G = I)."""
+    from scipy.linalg import solve_continuous_are
+    prefix = context.prefix
+    if values["Q"] is None or values["R"] is None or table.keys() - {"form"}:
+        raise ParameterError(f"{prefix}Q, R: a Kalman design needs both Q and R and none of poles, t_settle, shift, N")
+    Q = _covariance(f"{prefix}Q", values["Q"], model.n, definite=False)
+    R = _covariance(f"{prefix}R", values["R"], model.p, definite=True)
+    try:
+        P = solve_continuous_are(model.A.T, model.C.T, Q, R)
+    except (np.linalg.LinAlgError, ValueError) as exc:
+        raise ParameterError(f"{prefix}Q, R: the Riccati equation has no stabilising solution ({exc})") from None
+    N = P @ model.C.T @ np.linalg.inv(R)
+    require_hurwitz(f"{prefix}Q, R (A - N C of the Kalman gain)", model.A - N @ model.C)
+    context.notes.append(f"{prefix.rstrip('.')}: Kalman N = {matrix_text(N)}; eig(A - N C) = "
+                         f"[{poles_text(np.linalg.eigvals(model.A - N @ model.C))}]")
+    context.rate(np.linalg.eigvals(model.A - N @ model.C), "eig(A - N C)")
+    return N
+
+
+def _design(table: dict):
+    """The design the FMU carries as a parameter and designs its gain from at initialisation (``--set``,
+    ``--vary`` and importers can change it), or None: the gain itself (given, or complex poles)."""
+    form = table.get("form", "binomial")
+    if "t_settle" in table:
+        return "t_settle", table["t_settle"], form
+    if "shift" in table:
+        return "shift", table["shift"], form
+    if "poles" in table and all(np.isreal(complex(p) if np.ndim(p) == 0 else complex(*p)) for p in table["poles"]):
+        return "poles", [float(np.real(p if np.ndim(p) == 0 else p[0])) for p in table["poles"]], form
+    return None
 
 
 register("luenberger", "Luenberger observer of an lti component: `x_hat' = A x_hat + B u + N (y - C x_hat - D u)`. "
          "Give exactly one of `poles`, `t_settle` (with `form`), `shift` or `N`. Inputs `u`, `y`; outputs `x_hat`, "
          "`y_hat`.", _design_fields("N", "n x p", "observer") + (
-             Field("x_hat0", "vector", "initial estimate (absent: zero)", None, example="[0, 0]"),),
+             Field("x_hat0", "vector", "initial estimate (absent: zero)", None, example="[0, 0]"),
+             Field("Q", "matrix", "process noise covariance (n x n, entering every state): with R, the "
+                   "steady-state Kalman gain (LQE) instead of poles", None, example="[[0, 0], [0, 1]]"),
+             Field("R", "matrix", "measurement noise covariance (p x p, positive definite)", None, example="[[1e-4]]"),
+             Field("tunable", "boolean", "the design (`t_settle`, `shift` or real `poles`) is the FMU's parameter "
+                   "and N is designed from it at initialisation (`--set`, `--vary`, importers change it); false: "
+                   "N itself is the parameter", True, example="false"),),
          _define_observer, depends=("plant",))
 
 

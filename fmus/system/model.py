@@ -16,8 +16,8 @@ import numpy as np
 
 __all__ = ["ComponentSpec", "SystemSpec"]
 
-NO_REFERENCE = ("reference: none applies -- a user's system file has no independent monolithic solution "
-                "(name a CSV as [report] reference = \"file.csv\" to compare with one)")
+#: an own system without ``[report] reference`` prints no reference line (docs/your-own-system.md says how to add one)
+NO_REFERENCE = ""
 
 
 @dataclass
@@ -78,7 +78,7 @@ class SystemSpec:
             order=experiment["master"], coupling=experiment["coupling"], summarize=self.summarize,
             plot=self.plot if self.compares else None, time_unit=self.time_unit,
             output_interval=experiment["output_interval"], measure=self.measure(), tolerance=experiment["tolerance"],
-            ramp=experiment["ramp"], claim=f"No paper: the user's system file {Path(self.path).name}.",
+            ramp=experiment["ramp"], claim="",
             system_file=Path(self.path) if self.path else None, fastest=self.fastest)
 
     def measure(self):

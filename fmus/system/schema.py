@@ -36,7 +36,7 @@ FIELD_TYPES = {
     "string": "a text without control characters",
     "choice": "one of the texts listed",
     "vector": "a list of finite numbers",
-    "matrix": "a list of rows, each a list of finite numbers, all rows of one length",
+    "matrix": "a list of rows of one length, each entry a finite number or a constant expression (`\"-16000/250\"`, `\"2*pi\"`)",
     "poles": "a list of poles: numbers, or [re, im] pairs for complex ones",
     "units": "a unit (text), or a list of units, one per entry",
     "expressions": "a list of expressions (texts, one per entry; see the expression language)",

@@ -13,7 +13,7 @@ import unicodedata
 import numpy as np
 
 from observers.checks import ParameterError
-from observers.expressions import MAX_LENGTH
+from observers.expressions import MAX_LENGTH, Names, Source, compile_expression
 
 from ..config import MAX_DIMENSION as CONFIG_MAX_DIMENSION
 from .schema import Field
@@ -79,9 +79,21 @@ def _rows(where: str, value, entries: str = "numbers") -> None:
         raise ParameterError(f"{where}: the rows are empty")
 
 
+def _constant(where: str, value) -> float:
+    """A number, or a text that is a constant expression (``"-16000/250"``, ``"2*pi"``): compiled by the
+    whitelisted expression grammar of :mod:`observers.expressions` (never ``eval``) with no variables."""
+    if not isinstance(value, str):
+        return _number(where, value)
+    evaluate = compile_expression(check_text(where, value), Names(time=False), Source(where))
+    result = evaluate(0.0, np.zeros(0), np.zeros(0), np.zeros(0))
+    if not math.isfinite(result):
+        raise ParameterError(f"{where}: {value!r} is {result}, expected a finite number")
+    return float(result)
+
+
 def _matrix(where: str, value) -> np.ndarray:
-    _rows(where, value)
-    return np.array([[_number(f"{where}[{i}][{j}]", v) for j, v in enumerate(row, start=1)]
+    _rows(where, value, "numbers or constant expressions")
+    return np.array([[_constant(f"{where}[{i}][{j}]", v) for j, v in enumerate(row, start=1)]
                      for i, row in enumerate(value, start=1)], dtype=float)
 
 

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
-PACKAGES = ("fmus", "observers", "plants")
+PACKAGES = ("fmus", "observers", "plants", "obsfmu")
 
 
 @dataclass(frozen=True)

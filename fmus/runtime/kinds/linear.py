@@ -10,7 +10,9 @@ import numpy as np
 
 from observers.feedback import StateFeedback
 from observers.luenberger import LuenbergerObserver
+from observers.checks import ParameterError
 from observers.lti_model import StateSpace
+from observers.modal import MAX_TRANSIENT_GROWTH, desired_poles, observer_gain, shifted_poles, transient_growth
 from plants.lti import LTIPlant
 
 from ..definition import FmuDefinition, Parameter, Port
@@ -29,7 +31,32 @@ def _lti_plant(p, options):
 
 @register("luenberger-observer")
 def _luenberger(p, options):
-    return LuenbergerObserver(p["A"], p["B"], p["C"], p["N"], p["x_hat0"], p["D"])
+    N = p["N"] if "N" in p else _designed_gain(p, options)
+    return LuenbergerObserver(p["A"], p["B"], p["C"], N, p["x_hat0"], p["D"])
+
+
+#: the design parameters an observer FMU may carry instead of its gain N (computed at initialisation)
+DESIGNS = ("t_settle", "poles", "shift")
+
+
+def _designed_gain(p, options) -> np.ndarray:
+    """N with eig(A - N C) at the poles of the FMU's design parameter (``t_settle`` with the build's ``form``,
+    real ``poles``, or ``shift``), as the system file designs it (paper 002, pole placement by duality); a
+    choice that is not observable or leaves an unbounded transient raises, naming the parameter."""
+    A, C, design = np.atleast_2d(p["A"]), np.atleast_2d(p["C"]), options["design"]
+    if design == "shift":
+        poles = shifted_poles(A, float(p["shift"]), "shift")
+    elif design == "t_settle":
+        poles = desired_poles(len(A), t_settle=float(p["t_settle"]), form=options["form"], name="t_settle")
+    else:
+        poles = desired_poles(len(A), poles=np.ravel(p["poles"]), name="poles")
+    N = observer_gain(A, C, poles, design)
+    growth = transient_growth(A - N @ C)
+    if growth > MAX_TRANSIENT_GROWTH:
+        raise ParameterError(f"{design}: eig(A - N C) = {np.round(poles, 6).tolist()} amplifies an initial error "
+                             f"up to {growth:.2g} times before it decays (accepted: {MAX_TRANSIENT_GROWTH:g}); "
+                             "choose slower poles or poles closer to the plant's own")
+    return N
 
 
 @register("state-feedback")
@@ -93,19 +120,35 @@ def plant_definition(model_name: str, model: StateSpace, x0, units: dict, descri
     )
 
 
+def _design_parameter(design, N) -> Parameter:
+    """The gain ``N`` itself, or the design ``(name, value, form)`` the FMU computes ``N`` from at initialisation."""
+    if design is None:
+        return Parameter.of("N", N, "observer gain (eig(A - N C) Hurwitz)", drop_axes=(1,))
+    name, value, form = design
+    if name == "t_settle":
+        return Parameter.scalar(name, value, f"settling time of the observer's poles ({form} standard form); "
+                                "N is designed from it at initialisation", "s")
+    if name == "shift":
+        return Parameter.scalar(name, value, "the plant's eigenvalues moved left by shift are the observer's "
+                                "poles; N is designed from it at initialisation", "1/s")
+    return Parameter.of(name, value, "the observer's poles (real); N is designed from them at initialisation", "1/s")
+
+
 def observer_definition(model_name: str, model: StateSpace, N, x_hat0, units: dict,
-                        description: str, poles) -> FmuDefinition:
-    """Luenberger observer FMU: parameters A, B, C, D, N, x_hat0; inputs u, y; outputs x_hat, y_hat."""
+                        description: str, poles, design=None) -> FmuDefinition:
+    """Luenberger observer FMU: parameters A, B, C, D, N (or the ``design`` it is computed from at
+    initialisation: ``(name, value, form)``, name one of :data:`DESIGNS`), x_hat0; inputs u, y; outputs x_hat, y_hat."""
     u, y = _signal_ports(model, units)
     poles_text = ", ".join(f"{complex(p):.6g}".strip("()").replace("+0j", "") for p in poles)
     return FmuDefinition(
         model_name=model_name,
         kind="luenberger-observer",
         feedthrough=bool(np.any(model.D)),
+        options={} if design is None else {"design": design[0], "form": design[2]},
         description=description or f"Luenberger observer x_hat' = A x_hat + B u + N (y - C x_hat - D u), "
                                    f"eig(A - N C) = [{poles_text}]",
         parameters=_model_parameters(model) + [
-            Parameter.of("N", N, "observer gain (eig(A - N C) Hurwitz)", drop_axes=(1,)),
+            _design_parameter(design, N),
             Parameter.of("x_hat0", x_hat0, "initial estimate x_hat(0)", _vector_unit(units, "state_units")),
         ],
         inputs=[u, y],
