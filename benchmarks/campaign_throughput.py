@@ -31,13 +31,13 @@ from pathlib import Path
 
 from distributed import Client
 
-from fmus.campaign.design import Campaign
-from fmus.campaign.runner import local_cluster, run_campaign
+from obsfmu.fmus.campaign.design import Campaign
+from obsfmu.fmus.campaign.runner import local_cluster, run_campaign
 
 
 def single_run(scenario: str, stop_time: float, build_dir: Path, values: dict[str, float]) -> float:
     """Wall time of ``obsfmu run`` of one case in a fresh process."""
-    command = [sys.executable, "-m", "fmus.cli", "run", scenario, "--stop-time", repr(stop_time),
+    command = [sys.executable, "-m", "obsfmu", "run", scenario, "--stop-time", repr(stop_time),
                "--build-dir", str(build_dir)] + [f"--set={name}={value!r}" for name, value in values.items()]
     started = time.perf_counter()
     subprocess.run(command, check=True, capture_output=True, cwd=Path(__file__).resolve().parents[1])

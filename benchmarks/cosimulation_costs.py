@@ -52,9 +52,9 @@ sys.path.insert(0, str(ROOT))
 from benchmarks.high_order import chain_config, input_system          # noqa: E402
 from benchmarks.direct_loop import DirectLoop                    # noqa: E402
 from benchmarks.errors import ERRORS                             # noqa: E402
-from fmus.builder import build_fmu                                 # noqa: E402
-from fmus.master import Component, Session, System                # noqa: E402
-from fmus.scenarios import ensure_fmus, get, system               # noqa: E402
+from obsfmu.fmus.builder import build_fmu                                 # noqa: E402
+from obsfmu.fmus.master import Component, Session, System                # noqa: E402
+from obsfmu.fmus.scenarios import ensure_fmus, get, system               # noqa: E402
 
 BIN = Path(sys.executable).parent
 OBSFMU = str(BIN / "obsfmu")
@@ -245,13 +245,13 @@ def CHAIN_OBSERVER(n: int) -> dict:
     """An explicit gain for the integrator chain (only the cost is measured): the coefficients of the
     Butterworth polynomial of radius 0.5, which the chain's observer matrix has as its characteristic
     polynomial (a designed one is refused above n = 10, see benchmarks/high_order.py)."""
-    from observers.standard_forms import butterworth
+    from obsfmu.observers.standard_forms import butterworth
     return {"N": butterworth(n, 0.5)[1:, None].tolist()}
 
 
 def section_per_step(args, build):
     print("\n== 1. FMU master vs direct loop of the same blocks (CPU per communication step)", flush=True)
-    from fmus.config import design_from_config
+    from obsfmu.fmus.config import design_from_config
     cases = []
     steps = 200 if args.quick else 1000
     for name in ("ship", "ltv-ls-bounded", "uio-ftdrem"):
@@ -296,8 +296,8 @@ def section_per_step(args, build):
 # ---------------------------------------------------------------------------- 2. numerics
 LSODA = """
 import numpy as np
-from fmus.scenarios.ltv_common import reference as ref
-from fmus.scenarios.ltv_common import load_reference
+from obsfmu.fmus.scenarios.ltv_common import reference as ref
+from obsfmu.fmus.scenarios.ltv_common import load_reference
 r = load_reference("bounded")
 out = ref.simulate(r["t"], **ref.BOUNDED, form="information", method="LSODA", rtol={rtol}, atol={rtol})
 print("error", np.abs(out["theta_hat"] - r["theta_hat"]).max())
@@ -344,7 +344,7 @@ INSTANTIATE = """
 import sys, time
 import numpy, fmpy, fmpy.fmi2
 from fmpy import extract, read_model_description
-from fmus.master.log import Logger
+from obsfmu.fmus.master.log import Logger
 path = sys.argv[1]
 description = read_model_description(path)
 directory = extract(path)
@@ -447,8 +447,8 @@ def _fixed_reaching(scenario, fmus, error, target, budget):
 def section_adaptive(args, build):
     print("\n== 5. adaptive master vs the fixed step reaching the same error", flush=True)
     import warnings
-    from fmus.master import SimulationError
-    from fmus.scenarios import SCENARIOS, run
+    from obsfmu.fmus.master import SimulationError
+    from obsfmu.fmus.scenarios import SCENARIOS, run
     for name, scenario in SCENARIOS.items():
         if args.scenarios and name not in args.scenarios:
             continue

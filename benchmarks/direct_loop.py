@@ -16,10 +16,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from fmus.runtime.definition import FmuDefinition
-from fmus.runtime.kinds import create_block, module_of
-from fmus.master import Connection, communication_points
-from observers.block import Segment
+from obsfmu.fmus.runtime.definition import FmuDefinition
+from obsfmu.fmus.runtime.kinds import create_block, module_of
+from obsfmu.fmus.master import Connection, communication_points
+from obsfmu.observers.block import Segment
 
 __all__ = ["DirectLoop", "for_scenario"]
 

@@ -19,7 +19,7 @@ __all__ = ["ERRORS"]
 
 
 def _ship_error(result):
-    from fmus.scenarios.ship import composite_solution
+    from obsfmu.fmus.scenarios.ship import composite_solution
     states = np.column_stack([result.vector("plant.x"), result.vector("observer.x_hat")])
     return float(np.max(np.abs(states - composite_solution(result.time))))
 
@@ -33,11 +33,11 @@ def _ltv_reference(case):
     (fixed step 5e-5 s: 2.0e-6, 2.5e-5 s: 1.4e-7; against the file both ~2e-6): the paper case is
     measured against that solution (~20 s CPU, once per process).
     """
-    from fmus.scenarios.ltv_common import load_reference
+    from obsfmu.fmus.scenarios.ltv_common import load_reference
     reference = load_reference(case)
     if case != "paper":
         return reference["t"], reference["theta_hat"]
-    from fmus.scenarios.ltv_common import reference as paper001
+    from obsfmu.fmus.scenarios.ltv_common import reference as paper001
     return reference["t"], paper001.simulate(reference["t"], **paper001.PAPER)["theta_hat"]
 
 
@@ -51,7 +51,7 @@ def _ltv_error(case):
 
 def _state_affine_error(folder):
     def error(result):
-        from fmus.scenarios.state_affine_common import load_reference
+        from obsfmu.fmus.scenarios.state_affine_common import load_reference
         reference = load_reference(ROOT / "fmus" / "scenarios" / folder / "reference.csv")
         keep = reference["time"] <= result.time[-1] + 1e-9
         worst = 0.0

@@ -16,7 +16,7 @@ import timeit
 
 import numpy as np
 
-from observers.estimation import (
+from obsfmu.observers.estimation import (
     DREM,
     DelayExtension,
     DiscreteDREM,

@@ -32,11 +32,11 @@ import numpy as np
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 
-from fmus.builder import build_fmu
-from fmus.runtime.kinds.expression import expression_plant_definition
-from fmus.runtime.slave import BlockSlave
-from observers.block import Block
-from observers.integrators import rk4_step, substep_count
+from obsfmu.fmus.builder import build_fmu
+from obsfmu.fmus.runtime.kinds.expression import expression_plant_definition
+from obsfmu.fmus.runtime.slave import BlockSlave
+from obsfmu.observers.block import Block
+from obsfmu.observers.integrators import rk4_step, substep_count
 
 PARAMETERS = {"delta": 0.3, "alpha": -1.0, "beta": 1.0, "gain": 0.8}
 F = ["x[2]", "-delta * x[2] - alpha * x[1] - beta * x[1] ** 3 + gain * u[1]"]

@@ -22,11 +22,11 @@ import timeit
 
 import numpy as np
 
-from fmus.scenarios import ensure_fmus, get, run
-from observers.block import Segment
-from observers.estimation import DelayExtension, DiscreteDREM
-from observers.gpebo import GpeboObserver
-from plants.gpebo import EXAMPLE, GeneratorPlant, example_model
+from obsfmu.fmus.scenarios import ensure_fmus, get, run
+from obsfmu.observers.block import Segment
+from obsfmu.observers.estimation import DelayExtension, DiscreteDREM
+from obsfmu.observers.gpebo import GpeboObserver
+from obsfmu.plants.gpebo import EXAMPLE, GeneratorPlant, example_model
 
 
 def signals(samples: int):

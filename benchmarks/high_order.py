@@ -16,8 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from fmus.runtime.kinds.signals import source_definition
-from fmus.master import Connection
+from obsfmu.fmus.runtime.kinds.signals import source_definition
+from obsfmu.fmus.master import Connection
 
 __all__ = ["chain_config", "modes_config", "input_system"]
 

@@ -22,8 +22,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from benchmarks.direct_loop import DirectLoop                       # noqa: E402
-from fmus.scenarios import get                                      # noqa: E402
-from fmus.scenarios.ltv_common import load_reference                # noqa: E402
+from obsfmu.fmus.scenarios import get                                      # noqa: E402
+from obsfmu.fmus.scenarios.ltv_common import load_reference                # noqa: E402
 
 BOUNDED = [  # step, input degree, max_substep, ramp, the observer's f_correction
     (1e-3, 2, 1e-3, 0, 0), (1e-2, 2, 5e-3, 6, 0), (1e-2, 3, 5e-3, 6, 0), (1e-2, 4, 5e-3, 0, 0),

@@ -28,8 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
-from fmus.scenarios import ensure_fmus, get, run
-from fmus.scenarios.ltv_common import reference as ref
+from obsfmu.fmus.scenarios import ensure_fmus, get, run
+from obsfmu.fmus.scenarios.ltv_common import reference as ref
 
 CASES = {"bounded": ("ltv-ls-bounded", ref.BOUNDED, 20.0), "paper": ("ltv-ls", ref.PAPER, 15.0)}
 

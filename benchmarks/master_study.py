@@ -21,7 +21,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from benchmarks.errors import ERRORS                     # noqa: E402
-from fmus.scenarios import ensure_fmus, get, run         # noqa: E402
+from obsfmu.fmus.scenarios import ensure_fmus, get, run         # noqa: E402
 
 CONFIGS = [("Jacobi, hold", "jacobi", "hold"), ("Gauss-Seidel, hold", "gauss-seidel", "hold"),
            ("Gauss-Seidel, interpolated", "gauss-seidel", "linear")]

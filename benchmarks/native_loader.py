@@ -26,7 +26,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "fmus" / 
 
 from native_harness import Unzipped, compile_importer, read_csv, run as run_importer, system_script  # noqa: E402
 
-from fmus.scenarios import ensure_fmus, get, run  # noqa: E402
+from obsfmu.fmus.scenarios import ensure_fmus, get, run  # noqa: E402
 
 RUNS = {"ship": (0.2, 1e-4), "ltv-ls-bounded": (2.0, 1e-3)}
 

@@ -38,7 +38,7 @@ TOLERANCE = 1e-6            # the file's converged_tolerance
 
 def sweep(out: Path, setting: tuple[str, str], workers: int) -> list[dict]:
     restart_tol, k = setting
-    command = [sys.executable, "-m", "fmus.cli", "sweep", "--config", str(EXAMPLE),
+    command = [sys.executable, "-m", "obsfmu", "sweep", "--config", str(EXAMPLE),
                "--vary", "sensor.std=[" + ",".join(repr(s) for s in STDS) + "]", "--vary", "sensor.seed=0:9:10",
                "--set", f"observer.restart_tol={restart_tol}", "--set", f"observer.k_gamma={k}",
                "--set", f"observer.k_eta={k}", "--workers", str(workers), "--out", str(out),
@@ -54,10 +54,10 @@ def false_flags(setting: tuple[str, str], std: float, seeds: int = 10) -> int:
     The file's blocks in memory (the code the FMUs run), noise added to y with numpy: the sweep does
     not record the true eta (the generator state at the last restart), the plant block has it.
     """
-    from fmus.runtime.kinds import create_block
-    from fmus.system.gpebo_types import block_of
-    from fmus.system.load import load_system
-    from observers.block import Segment
+    from obsfmu.fmus.runtime.kinds import create_block
+    from obsfmu.fmus.system.gpebo_types import block_of
+    from obsfmu.fmus.system.load import load_system
+    from obsfmu.observers.block import Segment
 
     definitions = {d.model_name.split("_")[-1]: d for d in load_system(EXAMPLE).definitions()}
     observer_definition = definitions["observer"]

@@ -64,7 +64,7 @@ def study_file(example: Example, folder: Path) -> Path:
 
 def sweep(example: Example, out: Path, workers: int) -> Path:
     out.mkdir(parents=True, exist_ok=True)
-    command = [sys.executable, "-m", "fmus.cli", "sweep", "--config", str(study_file(example, out)),
+    command = [sys.executable, "-m", "obsfmu", "sweep", "--config", str(study_file(example, out)),
                "--vary", f"sensor.std=[{', '.join(map(repr, example.stds))}]",
                "--vary", f"sensor.seed=[{', '.join(map(str, example.seeds))}]",
                "--vary", f"observer.beta=[{', '.join(map(repr, example.betas))}]",

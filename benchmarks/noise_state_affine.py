@@ -38,7 +38,7 @@ STUDIES = {
 
 
 def sweep(out: Path, study: str, workers: int) -> None:
-    command = [sys.executable, "-m", "fmus.cli", "sweep", "--config", str(EXAMPLE), *STUDIES[study][1],
+    command = [sys.executable, "-m", "obsfmu", "sweep", "--config", str(EXAMPLE), *STUDIES[study][1],
                "--workers", str(workers), "--no-progress", "--no-plots", "--out", str(out / study)]
     subprocess.run(command, cwd=ROOT, check=True)
 

@@ -58,14 +58,14 @@ def study_file(out: Path) -> Path:
 
 def sweep(out: Path, build: Path, workers: int, options: list[str]) -> None:
     """``obsfmu sweep`` of the study file with ``options`` (its --vary / --set) into ``out``."""
-    command = [sys.executable, "-m", "fmus.cli", "sweep", "--config", str(study_file(out)), *options,
+    command = [sys.executable, "-m", "obsfmu", "sweep", "--config", str(study_file(out)), *options,
                "--stop-time", str(STOP), "--workers", str(workers), "--no-progress", "--no-plots", "--retry-failed",
                "--time-limit", "600", "--out", str(out), "--build-dir", str(build)]
     subprocess.run(command, check=True, cwd=ROOT)
 
 
 def rows(out: Path) -> list[dict]:
-    from fmus.campaign.store import load_rows
+    from obsfmu.fmus.campaign.store import load_rows
     table = load_rows(out)
     if table is None:
         raise SystemExit(f"no samples in {out}")

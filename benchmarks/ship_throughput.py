@@ -18,12 +18,12 @@ import time
 
 import numpy as np
 
-from fmus.scenarios import ensure_fmus, get, run
-from observers.block import Segment
-from observers.feedback import StateFeedback
-from observers.luenberger import LuenbergerObserver
-from fmus.scenarios.ship import loop
-from plants.lti import LTIPlant
+from obsfmu.fmus.scenarios import ensure_fmus, get, run
+from obsfmu.observers.block import Segment
+from obsfmu.observers.feedback import StateFeedback
+from obsfmu.observers.luenberger import LuenbergerObserver
+from obsfmu.fmus.scenarios.ship import loop
+from obsfmu.plants.lti import LTIPlant
 
 
 def direct(steps: int, h: float) -> np.ndarray:

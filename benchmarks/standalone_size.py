@@ -22,8 +22,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "fmus" / 
 from native_harness import compile_importer  # noqa: E402
 from python_free_root import alone_lines, enter_command, first_of_each_kind, make_root, run_in_root, unzip  # noqa: E402
 
-from fmus.scenarios import ensure_fmus  # noqa: E402
-from fmus.standalone import describe  # noqa: E402
+from obsfmu.fmus.scenarios import ensure_fmus  # noqa: E402
+from obsfmu.fmus.standalone import describe  # noqa: E402
 
 MB = 1e6
 

@@ -28,11 +28,11 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from observers.block import Segment  # noqa: E402
-from observers.estimation import mix  # noqa: E402
-from observers.modal import observer_gain  # noqa: E402
-from observers.state_affine import StateAffineModel, StateAffineObserver  # noqa: E402
-from plants import state_affine as ex  # noqa: E402
+from obsfmu.observers.block import Segment  # noqa: E402
+from obsfmu.observers.estimation import mix  # noqa: E402
+from obsfmu.observers.modal import observer_gain  # noqa: E402
+from obsfmu.observers.state_affine import StateAffineModel, StateAffineObserver  # noqa: E402
+from obsfmu.plants import state_affine as ex  # noqa: E402
 
 
 def examples():
@@ -59,7 +59,7 @@ def fmu_step_cost(scenario: str, model_name: str, h: float, y: float, u: float) 
     from fmpy import extract, read_model_description
     from fmpy.fmi2 import FMU2Slave
 
-    from fmus.scenarios import ensure_fmus, get
+    from obsfmu.fmus.scenarios import ensure_fmus, get
     path = ensure_fmus(get(scenario), ROOT / "build")[model_name]
     description = read_model_description(str(path))
     slave = FMU2Slave(guid=description.guid, unzipDirectory=extract(str(path)),

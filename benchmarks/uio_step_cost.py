@@ -20,11 +20,11 @@ import numpy as np
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 
-from fmus.scenarios import ensure_fmus, get, run
-from fmus.scenarios.uio_ftdrem import A, B, B_BAR, C, DISTURBANCE, H, R, X0, XI0, XI0_FREE, XI0_KNOWN, Z0, gain
-from observers.block import Segment
-from observers.uio import UIOFiniteTimeObserver
-from plants.uio import DisturbedLTVPlant
+from obsfmu.fmus.scenarios import ensure_fmus, get, run
+from obsfmu.fmus.scenarios.uio_ftdrem import A, B, B_BAR, C, DISTURBANCE, H, R, X0, XI0, XI0_FREE, XI0_KNOWN, Z0, gain
+from obsfmu.observers.block import Segment
+from obsfmu.observers.uio import UIOFiniteTimeObserver
+from obsfmu.plants.uio import DisturbedLTVPlant
 
 STEP, STOP, SPLIT = 1e-3, 20.0, 7.6
 

@@ -24,7 +24,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "fmus" / 
 from native_harness import Unzipped, compile_importer, run as run_importer  # noqa: E402
 from windows_harness import Wine, windows_importer, windows_path  # noqa: E402
 
-from fmus.scenarios import ensure_fmus, get  # noqa: E402
+from obsfmu.fmus.scenarios import ensure_fmus, get  # noqa: E402
 
 MODELS = {"ship": ("ship_plant", "ship_observer"), "ltv-ls-bounded": ("ltv_ls_bounded_observer",)}
 

@@ -6,7 +6,7 @@ under a package named after the hash of that code, ``resources/_obsfmu_<hash>/``
 their absolute imports of the bundled top-level names (:func:`relocate`: the exact import nodes
 of the syntax tree, layout and line numbers kept)::
 
-    from observers.block import Block  ->  from _obsfmu_3f2a....observers.block import Block
+    from obsfmu.observers.block import Block  ->  from _obsfmu_3f2a....observers.block import Block
 
 so FMUs built from different code never share a module, and an FMU never runs the host's own
 ``fmus`` (or a checkout's).  FMUs built from the same code share the package.

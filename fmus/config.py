@@ -54,11 +54,11 @@ from pathlib import Path
 
 import numpy as np
 
-from observers.checks import ParameterError, as_matrix, as_vector, require_hurwitz
-from observers.lti_model import StateSpace
-from observers.modal import (MAX_TRANSIENT_GROWTH, desired_poles, shifted_poles, is_controllable, is_observable, observer_gain,
+from obsfmu.observers.checks import ParameterError, as_matrix, as_vector, require_hurwitz
+from obsfmu.observers.lti_model import StateSpace
+from obsfmu.observers.modal import (MAX_TRANSIENT_GROWTH, desired_poles, shifted_poles, is_controllable, is_observable, observer_gain,
                              place, transient_growth)
-from observers.standard_forms import FORMS
+from obsfmu.observers.standard_forms import FORMS
 
 from .runtime.definition import FmuDefinition, experiment, valid_identifier
 from .runtime.kinds.linear import feedback_definition, observer_definition, plant_definition

@@ -72,7 +72,7 @@ def _start_worker(flag) -> None:
 
 
 def _job(out: Path, build_dir: Path, name: str, settings: dict | None) -> Finished:
-    from observers.checks import ParameterError
+    from obsfmu.observers.checks import ParameterError
 
     from .cli.runs import run_one
     from .master import SimulationError

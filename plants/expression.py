@@ -24,10 +24,10 @@ from typing import Mapping
 
 import numpy as np
 
-from observers.block import Block, Segment
-from observers.checks import ParameterError, as_vector, require_positive
-from observers.expressions import VectorFunction
-from observers.integrators import DEFAULT_SUBSTEP_BUDGET, require_budget, rk4_step, sample_count, substep_count
+from obsfmu.observers.block import Block, Segment
+from obsfmu.observers.checks import ParameterError, as_vector, require_positive
+from obsfmu.observers.expressions import VectorFunction
+from obsfmu.observers.integrators import DEFAULT_SUBSTEP_BUDGET, require_budget, rk4_step, sample_count, substep_count
 
 __all__ = ["ExpressionPlant"]
 

@@ -34,9 +34,9 @@ from typing import Mapping
 
 import numpy as np
 
-from observers.block import Block, Segment
-from observers.checks import as_vector, finite_signal, require_positive
-from observers.gpebo.model import GeneratorModel, require_sample_step, shift_matrix
+from obsfmu.observers.block import Block, Segment
+from obsfmu.observers.checks import as_vector, finite_signal, require_positive
+from obsfmu.observers.gpebo.model import GeneratorModel, require_sample_step, shift_matrix
 
 __all__ = ["GeneratorPlant", "sine", "example_model", "EXAMPLE"]
 

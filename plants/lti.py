@@ -12,10 +12,10 @@ from typing import Mapping
 
 import numpy as np
 
-from observers.block import Block, Segment
-from observers.checks import as_vector
-from observers.integrators import DEFAULT_SUBSTEP_BUDGET, LinearPropagator, require_budget, sample_count
-from observers.lti_model import StateSpace
+from obsfmu.observers.block import Block, Segment
+from obsfmu.observers.checks import as_vector
+from obsfmu.observers.integrators import DEFAULT_SUBSTEP_BUDGET, LinearPropagator, require_budget, sample_count
+from obsfmu.observers.lti_model import StateSpace
 
 __all__ = ["LTIPlant"]
 

@@ -30,11 +30,11 @@ from typing import Mapping
 
 import numpy as np
 
-from observers.block import Block, Segment
-from observers.checks import SignalError, as_vector, require_positive
-from observers.integrators import DEFAULT_SUBSTEP_BUDGET, require_budget, rk4_step, substep_count
-from observers.ltv.model import Nonlinearities, OutputVector, gain_matrix
-from observers.ltv.stepping import PolynomialInputs, time_function
+from obsfmu.observers.block import Block, Segment
+from obsfmu.observers.checks import SignalError, as_vector, require_positive
+from obsfmu.observers.integrators import DEFAULT_SUBSTEP_BUDGET, require_budget, rk4_step, substep_count
+from obsfmu.observers.ltv.model import Nonlinearities, OutputVector, gain_matrix
+from obsfmu.observers.ltv.stepping import PolynomialInputs, time_function
 
 from .signals import SampledNoise
 

@@ -35,9 +35,9 @@ from typing import Mapping
 
 import numpy as np
 
-from observers.block import Block, Segment
-from observers.checks import ParameterError, require_positive
-from observers.integrators import BudgetError, expm
+from obsfmu.observers.block import Block, Segment
+from obsfmu.observers.checks import ParameterError, require_positive
+from obsfmu.observers.integrators import BudgetError, expm
 
 from .sources.base import integer_parameter, interval_index
 

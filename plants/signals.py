@@ -19,8 +19,8 @@ from typing import Mapping
 
 import numpy as np
 
-from observers.block import Block, Segment
-from observers.checks import ParameterError, as_vector, require_positive
+from obsfmu.observers.block import Block, Segment
+from obsfmu.observers.checks import ParameterError, as_vector, require_positive
 
 __all__ = ["SampledNoise", "Waveform", "SignalSource"]
 

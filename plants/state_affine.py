@@ -54,9 +54,9 @@ from typing import Mapping
 
 import numpy as np
 
-from observers.block import Block, Segment
-from observers.checks import ParameterError, SignalError, as_vector, require_positive
-from observers.integrators import DEFAULT_SUBSTEP_BUDGET, require_budget, substep_count
+from obsfmu.observers.block import Block, Segment
+from obsfmu.observers.checks import ParameterError, SignalError, as_vector, require_positive
+from obsfmu.observers.integrators import DEFAULT_SUBSTEP_BUDGET, require_budget, substep_count
 
 __all__ = [
     "Pendulum", "Chemostat",

@@ -24,9 +24,9 @@ from typing import Mapping
 
 import numpy as np
 
-from observers.block import Block, Segment
-from observers.checks import ParameterError, as_matrix, as_vector, require_square
-from observers.integrators import DEFAULT_SUBSTEP_BUDGET, expm, require_budget, rk4_step, substep_count
+from obsfmu.observers.block import Block, Segment
+from obsfmu.observers.checks import ParameterError, as_matrix, as_vector, require_square
+from obsfmu.observers.integrators import DEFAULT_SUBSTEP_BUDGET, expm, require_budget, rk4_step, substep_count
 
 from .signals import SampledNoise
 

@@ -13,14 +13,14 @@ def build_dir(tmp_path_factory):
 
 @pytest.fixture(scope="session")
 def ship_fmus(build_dir):
-    from fmus.scenarios import ensure_fmus, get
+    from obsfmu.fmus.scenarios import ensure_fmus, get
     return ensure_fmus(get("ship"), build_dir)
 
 
 @pytest.fixture(scope="session")
 def every_fmu(build_dir):
     """model -> (scenario step, fmu path) for every distinct FMU used by a scenario."""
-    from fmus.scenarios import SCENARIOS, ensure_fmus
+    from obsfmu.fmus.scenarios import SCENARIOS, ensure_fmus
     found = {}
     for scenario in SCENARIOS.values():
         for model, path in ensure_fmus(scenario, build_dir).items():
@@ -31,7 +31,7 @@ def every_fmu(build_dir):
 @pytest.fixture(scope="session")
 def every_fmu3(build_dir):
     """model -> (scenario step, FMI 3.0 fmu path) for every distinct FMU used by a scenario (build_dir/fmi3)."""
-    from fmus.scenarios import SCENARIOS, ensure_fmus
+    from obsfmu.fmus.scenarios import SCENARIOS, ensure_fmus
     found = {}
     for scenario in SCENARIOS.values():
         for model, path in ensure_fmus(scenario, build_dir, fmi_version=3).items():
@@ -46,8 +46,8 @@ def faulty_fmus(build_dir):
     with ``x0[1] = 0`` fails inside the slave -- the FMI error state, which no refused call reaches."""
     from pathlib import Path
 
-    from fmus.builder import build_fmu
-    from fmus.runtime.kinds.gpebo import generator_plant_definition
+    from obsfmu.fmus.builder import build_fmu
+    from obsfmu.fmus.runtime.kinds.gpebo import generator_plant_definition
 
     module = Path(__file__).with_name("faulty_user_function.py")
     definition = generator_plant_definition("faulty_plant", Ts=1e-3, f="faulty_user_function:f")

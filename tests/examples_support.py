@@ -19,9 +19,9 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def obsfmu(*args, cwd: Path) -> subprocess.CompletedProcess:
-    """``python -m fmus.cli ARGS`` in ``cwd`` with this checkout first on the path."""
+    """``python -m obsfmu ARGS`` in ``cwd`` with this checkout first on the path."""
     environment = {**os.environ, "PYTHONPATH": str(ROOT)}
-    return subprocess.run([sys.executable, "-m", "fmus.cli", *map(str, args)], cwd=cwd, env=environment,
+    return subprocess.run([sys.executable, "-m", "obsfmu", *map(str, args)], cwd=cwd, env=environment,
                           capture_output=True, text=True, timeout=900)
 
 

@@ -19,8 +19,8 @@ from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
                        fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
 
-from fmus.scenarios import SCENARIOS, ensure_fmus
-from fmus.runtime.state_format import decode, encode
+from obsfmu.fmus.scenarios import SCENARIOS, ensure_fmus
+from obsfmu.fmus.runtime.state_format import decode, encode
 
 OK, WARNING, DISCARD, ERROR, FATAL = 0, 1, 2, 3, 4
 BAD_VALUES = [float("nan"), float("inf"), -float("inf"), 1e308, -1e308]

@@ -9,7 +9,7 @@ from fmpy import extract, read_model_description, simulate_fmu
 from fmpy.fmi2 import FMU2Slave
 from fmpy.validation import validate_fmu
 
-from fmus.builder import build_fmu
+from obsfmu.fmus.builder import build_fmu
 
 
 def build_all(definitions, directory: Path) -> dict[str, Path]:

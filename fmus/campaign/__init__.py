@@ -11,7 +11,7 @@ interrupted campaign resumes where it stopped.  See ``docs/campaigns.md``.
 
 Example::
 
-    from fmus.campaign import Campaign, run_campaign
+    from obsfmu.fmus.campaign import Campaign, run_campaign
 
     study = Campaign("ltv-ls-bounded", vary={"plant.k[1]": "uniform(-4, -2)", "plant.x0[1]": "normal(2, 0.5)"},
                      samples=32, seed=1, stop_time=30.0)

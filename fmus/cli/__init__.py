@@ -1,4 +1,4 @@
-"""The command line ``obsfmu`` (entry point :func:`fmus.cli.main.main`; ``python -m fmus.cli``).
+"""The command line ``obsfmu`` (entry point :func:`fmus.cli.main.main`; ``python -m obsfmu``).
 
 * :mod:`~fmus.cli.main` -- the parser of every subcommand, the entry point and its error handling
 * :mod:`~fmus.cli.commands` -- ``build | list | run | export | all | report``

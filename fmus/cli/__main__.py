@@ -1,4 +1,4 @@
-"""``python -m fmus.cli``: the command line."""
+"""``python -m obsfmu``: the command line."""
 
 import sys
 

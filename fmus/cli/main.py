@@ -9,7 +9,7 @@ import signal
 import sys
 from collections.abc import Callable
 
-from observers.checks import ParameterError
+from obsfmu.observers.checks import ParameterError
 
 from ..campaign.cli import SUBCOMMAND as SWEEP
 from ..master import SimulationError

@@ -16,7 +16,7 @@ import importlib
 import re
 from collections.abc import Callable
 
-from observers.checks import ParameterError
+from obsfmu.observers.checks import ParameterError
 
 from .bundled import local_name, portable_name
 

@@ -104,7 +104,7 @@ class Parameter:
     @classmethod
     def substep_budget(cls, value=None) -> "Parameter":
         """``substep_budget`` of a block that sub-steps (:func:`observers.integrators.substep_count`)."""
-        from observers.integrators import DEFAULT_SUBSTEP_BUDGET
+        from obsfmu.observers.integrators import DEFAULT_SUBSTEP_BUDGET
         return cls.scalar("substep_budget", DEFAULT_SUBSTEP_BUDGET if value is None else value,
                           "most sub-steps one communication step may take; a step needing more is refused "
                           "(fmi2Discard) before any work")

@@ -19,8 +19,8 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from observers.checks import ParameterError
-from observers.expressions import CONSTANTS, FUNCTIONS, Names, Source, compile_vector
+from obsfmu.observers.checks import ParameterError
+from obsfmu.observers.expressions import CONSTANTS, FUNCTIONS, Names, Source, compile_vector
 
 __all__ = ["expression_function", "is_expression_function", "compiled", "ExpressionFunction"]
 

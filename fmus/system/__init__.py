@@ -75,7 +75,7 @@ def is_system_file(name: str) -> bool:
 
 def field_reference() -> str:
     """The field reference of the system file (markdown), generated from the registry."""
-    from observers.expressions import MAX_DEPTH, MAX_LENGTH
+    from obsfmu.observers.expressions import MAX_DEPTH, MAX_LENGTH
 
     from .connect import MAX_CONNECTIONS
     from .load import COMPARE_FIELDS, EXPERIMENT_FIELDS, MAX_COMPONENTS, MAX_FILE_BYTES, TOP_FIELDS

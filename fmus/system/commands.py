@@ -13,7 +13,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from observers.checks import ParameterError
+from obsfmu.observers.checks import ParameterError
 
 __all__ = ["scenario_key", "definitions_of", "build_definitions", "show", "is_design_file", "holds_components",
            "require_rereadable", "configure_show"]

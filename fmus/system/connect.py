@@ -12,7 +12,7 @@ import re
 
 import numpy as np
 
-from observers.checks import ParameterError
+from obsfmu.observers.checks import ParameterError
 
 from ..master import Connection
 from ..runtime.definition import Port

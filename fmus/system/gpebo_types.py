@@ -32,11 +32,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from observers.block import Segment
-from observers.checks import ParameterError, SignalError
-from observers.gpebo import GpeboObserver
-from observers.gpebo.companion import UNKNOWN_FORMS
-from observers.gpebo.terms import GENERATORS
+from obsfmu.observers.block import Segment
+from obsfmu.observers.checks import ParameterError, SignalError
+from obsfmu.observers.gpebo import GpeboObserver
+from obsfmu.observers.gpebo.companion import UNKNOWN_FORMS
+from obsfmu.observers.gpebo.terms import GENERATORS
 
 from ..runtime.definition import FmuDefinition
 from ..runtime.functions import expression_function

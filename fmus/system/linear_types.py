@@ -9,10 +9,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from observers.checks import ParameterError, require_hurwitz
-from observers.lti_model import StateSpace
-from observers.modal import is_controllable, is_observable, observer_gain, place
-from observers.standard_forms import FORMS
+from obsfmu.observers.checks import ParameterError, require_hurwitz
+from obsfmu.observers.lti_model import StateSpace
+from obsfmu.observers.modal import is_controllable, is_observable, observer_gain, place
+from obsfmu.observers.standard_forms import FORMS
 
 from ..config import design_gain, require_bounded_transient
 from ..runtime.kinds.expression import expression_plant_definition

@@ -15,8 +15,8 @@ import sys
 import unicodedata
 from pathlib import Path
 
-from observers.checks import ParameterError
-from observers.expressions import Names, Source, compile_expression
+from obsfmu.observers.checks import ParameterError
+from obsfmu.observers.expressions import Names, Source, compile_expression
 
 from ..master import COUPLINGS, ORDERS
 from .connect import check_compares, check_connections, check_values, require_connected

@@ -14,11 +14,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from observers.checks import ParameterError
-from observers.ltv.assumptions import require_assumptions
-from observers.ltv.estimators import ESTIMATORS
-from observers.ltv.model import gain_matrix
-from observers.ltv.observer import PARTS
+from obsfmu.observers.checks import ParameterError
+from obsfmu.observers.ltv.assumptions import require_assumptions
+from obsfmu.observers.ltv.estimators import ESTIMATORS
+from obsfmu.observers.ltv.model import gain_matrix
+from obsfmu.observers.ltv.observer import PARTS
 
 from ..runtime.callables import resolve
 from ..runtime.functions import compiled, expression_function

@@ -29,9 +29,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from observers.checks import ParameterError, SignalError
-from observers.modal import is_observable, observer_gain
-from observers.state_affine.model import require_bounded_filter
+from obsfmu.observers.checks import ParameterError, SignalError
+from obsfmu.observers.modal import is_observable, observer_gain
+from obsfmu.observers.state_affine.model import require_bounded_filter
 
 from ..runtime.functions import compiled, expression_function
 from ..runtime.kinds import create_block

@@ -15,10 +15,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from observers.checks import ParameterError
-from observers.uio import (UIOFiniteTimeObserver, UIOSettings, check_generator, check_relative_degree,
+from obsfmu.observers.checks import ParameterError
+from obsfmu.observers.uio import (UIOFiniteTimeObserver, UIOSettings, check_generator, check_relative_degree,
                            relative_degree, uio_gain, uio_matrices)
-from plants.uio import DisturbedLTVPlant
+from obsfmu.plants.uio import DisturbedLTVPlant
 
 from ..config import require_bounded_transient
 from ..runtime.kinds.uio import ltv_plant_definition, uio_observer_definition

@@ -12,8 +12,8 @@ import unicodedata
 
 import numpy as np
 
-from observers.checks import ParameterError
-from observers.expressions import MAX_LENGTH, Names, Source, compile_expression
+from obsfmu.observers.checks import ParameterError
+from obsfmu.observers.expressions import MAX_LENGTH, Names, Source, compile_expression
 
 from ..config import MAX_DIMENSION as CONFIG_MAX_DIMENSION
 from .schema import Field

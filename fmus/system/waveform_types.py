@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from observers.checks import ParameterError
+from obsfmu.observers.checks import ParameterError
 
 from ..runtime.kinds.signals import source_definition
 from .schema import Context, Field, register

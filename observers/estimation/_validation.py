@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from observers.checks import ParameterError, as_vector, finite_signal, require_positive
+from obsfmu.observers.checks import ParameterError, as_vector, finite_signal, require_positive
 
 
 def dimension(name: str, value) -> int:

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from observers.checks import ParameterError
+from obsfmu.observers.checks import ParameterError
 
 from ._validation import initial_estimate, positive_gains, regression
 from .extension import DelayExtension

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from observers.checks import ParameterError
+from obsfmu.observers.checks import ParameterError
 
 from ._validation import initial_estimate, positive_gains, regression, step_length
 from .mixing import mix

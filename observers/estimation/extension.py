@@ -35,7 +35,7 @@ from collections import deque
 
 import numpy as np
 
-from observers.checks import ParameterError, as_vector, require_positive
+from obsfmu.observers.checks import ParameterError, as_vector, require_positive
 
 from ._validation import dimension
 from .exponential import held_input_lowpass

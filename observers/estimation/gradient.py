@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from observers.checks import require_positive
+from obsfmu.observers.checks import require_positive
 
 from ._validation import dimension, initial_estimate, regression, step_length
 from .exponential import phi1_symmetric

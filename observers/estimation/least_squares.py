@@ -48,7 +48,7 @@ import math
 
 import numpy as np
 
-from observers.checks import require_positive
+from obsfmu.observers.checks import require_positive
 
 from ._validation import dimension, initial_estimate, regression, step_length
 from .exponential import phi1

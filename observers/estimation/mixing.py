@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from observers.checks import SignalError
+from obsfmu.observers.checks import SignalError
 
 __all__ = ["mix", "normalize_rows"]
 

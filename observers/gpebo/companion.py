@@ -45,7 +45,7 @@ from itertools import permutations
 
 import numpy as np
 
-from observers.checks import ParameterError
+from obsfmu.observers.checks import ParameterError
 
 from . import laurent
 from .model import GeneratorModel

@@ -41,7 +41,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from observers.checks import ParameterError, SignalError, as_matrix, as_vector
+from obsfmu.observers.checks import ParameterError, SignalError, as_matrix, as_vector
 
 __all__ = ["shift_matrix", "generator_matrix", "GeneratorModel", "require_sample_step"]
 

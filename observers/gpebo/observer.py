@@ -51,9 +51,9 @@ from typing import Mapping
 
 import numpy as np
 
-from observers.block import Block, Segment
-from observers.checks import ParameterError, as_vector, finite_signal, require_positive
-from observers.estimation import DelayExtension, DiscreteDREM
+from obsfmu.observers.block import Block, Segment
+from obsfmu.observers.checks import ParameterError, as_vector, finite_signal, require_positive
+from obsfmu.observers.estimation import DelayExtension, DiscreteDREM
 
 from .filters import GpeboFilters
 from .model import GeneratorModel, require_sample_step

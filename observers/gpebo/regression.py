@@ -69,7 +69,7 @@ from math import lcm
 
 import numpy as np
 
-from observers.checks import ParameterError
+from obsfmu.observers.checks import ParameterError
 
 from .companion import CompanionRegression
 from .model import GeneratorModel

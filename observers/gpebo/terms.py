@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from observers.checks import ParameterError
+from obsfmu.observers.checks import ParameterError
 
 from .model import GeneratorModel
 

@@ -48,8 +48,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from observers.checks import ParameterError, SignalError, as_matrix, require_square
-from observers.modal import observability_matrix
+from obsfmu.observers.checks import ParameterError, SignalError, as_matrix, require_square
+from obsfmu.observers.modal import observability_matrix
 
 __all__ = ["Terms", "StateAffineModel", "require_bounded_filter"]
 

@@ -50,10 +50,10 @@ from typing import Mapping, NamedTuple
 
 import numpy as np
 
-from observers.block import Block, Segment
-from observers.checks import ParameterError, SignalError, as_vector, require_positive
-from observers.estimation import finite_time_estimate, mix, phi1, scalar_gradient_step
-from observers.integrators import require_budget, rk4_step, substep_count
+from obsfmu.observers.block import Block, Segment
+from obsfmu.observers.checks import ParameterError, SignalError, as_vector, require_positive
+from obsfmu.observers.estimation import finite_time_estimate, mix, phi1, scalar_gradient_step
+from obsfmu.observers.integrators import require_budget, rk4_step, substep_count
 
 from .model import StateAffineModel, Terms
 from .parametrization import Parametrization

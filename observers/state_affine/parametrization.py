@@ -57,7 +57,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from observers.checks import ParameterError, as_vector
+from obsfmu.observers.checks import ParameterError, as_vector
 
 from .model import StateAffineModel, Terms
 

@@ -41,8 +41,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from observers.checks import ParameterError, as_vector, require_hurwitz, require_square
-from observers.modal import observability_matrix, observer_gain
+from obsfmu.observers.checks import ParameterError, as_vector, require_hurwitz, require_square
+from obsfmu.observers.modal import observability_matrix, observer_gain
 
 __all__ = ["UIODesign", "relative_degree", "check_relative_degree", "uio_matrices", "uio_gain"]
 

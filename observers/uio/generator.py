@@ -20,8 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from observers.checks import ParameterError, as_matrix, unbounded_mode
-from observers.integrators import expm
+from obsfmu.observers.checks import ParameterError, as_matrix, unbounded_mode
+from obsfmu.observers.integrators import expm
 
 __all__ = ["GeneratorFlow", "check_generator"]
 

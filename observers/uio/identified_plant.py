@@ -26,10 +26,10 @@ from collections.abc import Callable
 
 import numpy as np
 
-from observers.checks import ParameterError
-from observers.estimation import FilterBankExtension, FiniteTimeDREM
-from observers.integrators import DEFAULT_SUBSTEP_BUDGET, rk4_step, substep_count
-from observers.modal import observer_gain
+from obsfmu.observers.checks import ParameterError
+from obsfmu.observers.estimation import FilterBankExtension, FiniteTimeDREM
+from obsfmu.observers.integrators import DEFAULT_SUBSTEP_BUDGET, rk4_step, substep_count
+from obsfmu.observers.modal import observer_gain
 
 __all__ = ["IdentifiedPlantObserver"]
 

@@ -42,10 +42,10 @@ from typing import Mapping
 
 import numpy as np
 
-from observers.block import Block, Segment
-from observers.checks import ParameterError, as_matrix, as_vector, finite_signal, require_positive
-from observers.estimation import FilterBankExtension, FiniteTimeDREM
-from observers.integrators import DEFAULT_SUBSTEP_BUDGET, require_budget
+from obsfmu.observers.block import Block, Segment
+from obsfmu.observers.checks import ParameterError, as_matrix, as_vector, finite_signal, require_positive
+from obsfmu.observers.estimation import FilterBankExtension, FiniteTimeDREM
+from obsfmu.observers.integrators import DEFAULT_SUBSTEP_BUDGET, require_budget
 
 from .design import UIODesign
 from .generator import GeneratorFlow, check_generator

@@ -63,7 +63,7 @@ from math import comb
 
 import numpy as np
 
-from observers.checks import ParameterError
+from obsfmu.observers.checks import ParameterError
 
 from .design import UIODesign
 from .generator import GeneratorFlow

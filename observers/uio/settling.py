@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from observers.checks import require_positive
+from obsfmu.observers.checks import require_positive
 
 __all__ = ["SettlingDetector", "RUNNING", "SETTLED", "TIMED_OUT"]
 

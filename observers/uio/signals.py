@@ -33,8 +33,8 @@ from math import comb
 
 import numpy as np
 
-from observers.checks import ParameterError
-from observers.integrators import LinearPropagator
+from obsfmu.observers.checks import ParameterError
+from obsfmu.observers.integrators import LinearPropagator
 
 __all__ = ["SignalModel", "lowpass_derivatives"]
 

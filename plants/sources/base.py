@@ -7,8 +7,8 @@ from typing import Mapping
 
 import numpy as np
 
-from observers.block import Block, Segment
-from observers.checks import ParameterError, as_vector
+from obsfmu.observers.block import Block, Segment
+from obsfmu.observers.checks import ParameterError, as_vector
 
 __all__ = ["BOUNDARY_TOLERANCE", "interval_index", "scalar_parameter", "integer_parameter", "Source",
            "PiecewiseConstant"]

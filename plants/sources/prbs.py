@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from observers.checks import require_positive
+from obsfmu.observers.checks import require_positive
 
 from .base import PiecewiseConstant, integer_parameter, interval_index, scalar_parameter
 

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from observers.checks import ParameterError, as_vector
+from obsfmu.observers.checks import ParameterError, as_vector
 
 from .base import Source
 

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from observers.checks import ParameterError, as_vector, require_positive
+from obsfmu.observers.checks import ParameterError, as_vector, require_positive
 
 from .base import BOUNDARY_TOLERANCE, PiecewiseConstant, Source, scalar_parameter
 

@@ -17,7 +17,7 @@ def test_the_graph_is_read():
     """The reader finds the project's modules and the imports everybody knows are there."""
     edges = imports()
     assert len(module_files()) > 50
-    assert any(e.importer == "fmus.cli.commands" and e.target.startswith("fmus.scenarios") for e in edges)
+    assert any(e.importer == "obsfmu.fmus.cli.commands" and e.target.startswith("obsfmu.fmus.scenarios") for e in edges)
     assert cycles([Import("a", "b", 1), Import("b", "c", 1), Import("c", "a", 1), Import("c", "d", 1)]) \
         == [["a", "b", "c"]]
 

@@ -9,10 +9,10 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
-from fmus import builder
+from obsfmu.fmus import builder
 
 ROOT = Path(__file__).resolve().parents[2]
-RUNTIME = "fmus.runtime"
+RUNTIME = "obsfmu.fmus.runtime"
 
 
 def module_name(path: Path, root: Path = ROOT) -> str:

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from benchmarks.direct_loop import for_scenario
-from fmus.master import Session, communication_points
-from fmus.scenarios import ensure_fmus, get, system
+from obsfmu.fmus.master import Session, communication_points
+from obsfmu.fmus.scenarios import ensure_fmus, get, system
 
 
 @pytest.mark.parametrize("name, stop_time, ramp", [("ship", 0.01, 0), ("ltv-ls-bounded", 0.2, 6),

@@ -12,7 +12,7 @@ The reference below is written from these equations only (plain numpy, nothing o
 * ``xi(0)`` by batch least squares on ``y(k) = phi_y(k) xi(0)`` (``k >= 3``), ``phi`` the response of the
   loop to each unit generator state with the measured ``y`` in the nonlinearity, then ``x = phi_x xi(0)``.
 
-The co-simulation runs through the CLI (``python -m fmus.cli run --config``), once per session.
+The co-simulation runs through the CLI (``python -m obsfmu run --config``), once per session.
 """
 
 from __future__ import annotations

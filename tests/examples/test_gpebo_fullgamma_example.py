@@ -12,7 +12,7 @@ The reference below is written from these equations only (plain numpy and scipy,
   nonlinearity), from 9 starts (undamped generators of 3 frequencies each), the best residual kept;
 * ``xi(0)`` by that least squares at the found ``gamma``, then ``x = phi_x xi(0)``.
 
-The co-simulation runs through the CLI (``python -m fmus.cli run --config``), once per session.
+The co-simulation runs through the CLI (``python -m obsfmu run --config``), once per session.
 """
 
 from __future__ import annotations

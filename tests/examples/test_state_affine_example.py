@@ -2,7 +2,7 @@
 
 A Van der Pol oscillator ``x1' = x2``, ``x2' = -a x1 + m (1 - x1^2) x2``, ``y = x1`` with unknown damping ``m``
 and stiffness ``a`` (the file derives its state-affine form in Lienard coordinates), run by
-``python -m fmus.cli run --config`` (a subprocess) and compared with an independent monolithic reference
+``python -m obsfmu run --config`` (a subprocess) and compared with an independent monolithic reference
 written here from the equations (plant + filters of Statement 2 + extended regression + mixing + finite-time
 gradient + Statement 3 as ONE ODE, scipy ``solve_ivp``, rtol 1e-10).  The reference imports nothing of the
 project.  Also: the ``converged`` flag contract and a small noisy run.

@@ -16,13 +16,13 @@ from collections import deque
 import numpy as np
 import pytest
 
-from fmus.runtime.kinds import create_block
-from fmus.scenarios import SCENARIOS
-from observers.block import Block, Segment
-from observers.integrators import BudgetError, require_budget, substep_count
-from observers.checks import ParameterError, SignalError
-from observers.ltv.stepping import IntegralSamples, PolynomialInputs
-from observers.state import Leaves, StateError, capture, plain, restore
+from obsfmu.fmus.runtime.kinds import create_block
+from obsfmu.fmus.scenarios import SCENARIOS
+from obsfmu.observers.block import Block, Segment
+from obsfmu.observers.integrators import BudgetError, require_budget, substep_count
+from obsfmu.observers.checks import ParameterError, SignalError
+from obsfmu.observers.ltv.stepping import IntegralSamples, PolynomialInputs
+from obsfmu.observers.state import Leaves, StateError, capture, plain, restore
 
 
 def definitions() -> dict[str, tuple[float, object]]:

@@ -41,7 +41,7 @@ def _version_lines(probe: Probe) -> list[tuple[int, str]]:
 
 def test_an_fmu_of_another_numpy_version_says_so_once(ship_fmus, tmp_path):
     """Before: an FMU built on numpy 2.4 ran on numpy 1.26 with outputs 1e-6 apart and no word."""
-    from fmus.runtime.slave.versions import running
+    from obsfmu.fmus.runtime.slave.versions import running
     fmu = ship_fmus["ship_plant"]
     with zipfile.ZipFile(fmu) as archive:
         assert json.loads(archive.read("resources/build_info.json"))["built_with"] == running()
@@ -63,7 +63,7 @@ def test_an_fmu_of_another_numpy_version_says_so_once(ship_fmus, tmp_path):
 def test_scipy_is_not_compared_no_fmu_imports_it_at_run_time(ship_fmus, tmp_path):
     """Every standalone FMU in a process without Python warned "... this Python runs numpy 2.4.6, scipy none"
     (issue 35): an FMU whose record differs in scipy alone says nothing."""
-    from fmus.runtime.slave.versions import running
+    from obsfmu.fmus.runtime.slave.versions import running
     other = _recorded_as(ship_fmus["ship_plant"], tmp_path / "ship_plant.fmu",
                          {"numpy": running()["numpy"], "scipy": "0.1"})
     probe = Probe(other, name="scipy")
@@ -95,12 +95,12 @@ def read_only_folder(tmp_path):
 def test_run_on_a_read_only_cache_falls_back_to_a_private_temporary_one(build_dir, read_only_folder, variable):
     """Before: ``obsfmu: error: <dir>: Read-only file system``, exit 2, the variable not named.  Now the run
     works, one note on stderr names the folder, the variable and the stand-in, removed at exit."""
-    from fmus.scenarios import ensure_fmus, get
+    from obsfmu.fmus.scenarios import ensure_fmus, get
     ensure_fmus(get("ship"), build_dir)
     env = {variable: str(read_only_folder)}
     if variable == "HOME":
         env.update(XDG_CACHE_HOME=None, OBSFMU_CACHE=None)
-    command = f"{sys.executable} -m fmus.cli run ship --build-dir {build_dir} --stop-time 0.01"
+    command = f"{sys.executable} -m obsfmu run ship --build-dir {build_dir} --stop-time 0.01"
     done = _read_only(read_only_folder, command, **env)
     assert done.returncode == 0, done.stderr
     notes = [line for line in done.stderr.splitlines() if line.startswith("obsfmu: note: the cache")]

@@ -19,8 +19,8 @@ import pytest
 from fmpy import extract, read_model_description
 
 from fmi3_support import DISCARD, ERROR, OK, Raw
-from fmus.fmi3.elements import elements
-from fmus.runtime.state_format import FORMAT_VERSION, decode, pack
+from obsfmu.fmus.fmi3.elements import elements
+from obsfmu.fmus.runtime.state_format import FORMAT_VERSION, decode, pack
 
 
 @pytest.fixture(scope="module")

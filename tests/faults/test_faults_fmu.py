@@ -207,7 +207,7 @@ def test_a_huge_step_returns_at_once_and_changes_nothing_when_refused(kind_fmus,
 
 def test_the_issue_step_of_a_million_seconds_on_the_pendulum_observer(build_dir):
     """Issue 13: ``fmi2DoStep(h = 1e6)`` on the state-affine-pendulum observer never returned."""
-    from fmus.scenarios import ensure_fmus, get
+    from obsfmu.fmus.scenarios import ensure_fmus, get
     probe = Probe(ensure_fmus(get("state-affine-pendulum"), build_dir)["state_affine_pendulum_observer"])
     refused_and_unchanged(probe, 1e6, "substep_budget: the step h = 1e+06 needs 1e+09 sub-steps of at most "
                                       "max_substep = 0.001, more than substep_budget = 1000")
@@ -301,7 +301,7 @@ def test_a_host_that_raises_on_floating_point_errors_does_not_break_the_fmus(bui
     and leave the host's settings as they were."""
     import warnings
 
-    from fmus.scenarios import run
+    from obsfmu.fmus.scenarios import run
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         old = np.seterr(all="raise")

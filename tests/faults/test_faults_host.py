@@ -27,12 +27,12 @@ from pathlib import Path
 import psutil
 import pytest
 
-from fmus.campaign.design import Campaign
-from fmus.campaign.errors import CampaignError
-from fmus.campaign.runner import run_campaign
-from fmus.scenarios import ensure_fmus, get
+from obsfmu.fmus.campaign.design import Campaign
+from obsfmu.fmus.campaign.errors import CampaignError
+from obsfmu.fmus.campaign.runner import run_campaign
+from obsfmu.fmus.scenarios import ensure_fmus, get
 
-OBSFMU = [sys.executable, "-m", "fmus.cli"]
+OBSFMU = [sys.executable, "-m", "obsfmu"]
 ROOT = Path(__file__).resolve().parents[2]
 
 
@@ -145,13 +145,13 @@ def test_a_bad_text_in_a_design_is_one_line_and_builds_nothing(tmp_path, head, u
 
 
 def test_a_name_with_a_trailing_newline_is_not_an_identifier():
-    from fmus.runtime.definition import valid_identifier
+    from obsfmu.fmus.runtime.definition import valid_identifier
     assert valid_identifier("x") and not valid_identifier("x\n") and not valid_identifier("x\ny")
 
 
 def test_a_plant_beyond_the_design_limit_is_refused_at_once(tmp_path):
     """201 states: refused from the size of plant.A; 2000 x 2000 (12 MB): from the size of the file."""
-    from fmus.config import MAX_DIMENSION
+    from obsfmu.fmus.config import MAX_DIMENSION
     n = MAX_DIMENSION + 1
     over = tmp_path / "over"
     over.mkdir()
@@ -203,7 +203,7 @@ def test_a_run_stopped_by_sigterm_or_sighup_keeps_its_rows(build_dir, tmp_path, 
 @pytest.mark.parametrize("jobs", [1, 2])
 def test_report_stopped_by_sigterm_keeps_the_rows_of_the_running_scenarios(build_dir, tmp_path, jobs):
     """``obsfmu report`` in an empty folder runs every scenario first (one by one, or in 2 workers)."""
-    from fmus.scenarios import SCENARIOS
+    from obsfmu.fmus.scenarios import SCENARIOS
     for scenario in SCENARIOS.values():
         ensure_fmus(scenario, build_dir)
     out = tmp_path / "out"
@@ -232,7 +232,7 @@ def test_all_stopped_by_sighup_while_it_builds_leaves_nothing_half_written(build
 
 
 def test_a_sweep_stopped_by_sigterm_keeps_its_finished_samples(build_dir, tmp_path):
-    from fmus.campaign.store import load_rows
+    from obsfmu.fmus.campaign.store import load_rows
     ensure_fmus(get("ltv-ls-bounded"), build_dir)
     out = tmp_path / "sweep"
     process = _start(["sweep", "ltv-ls-bounded", "--vary", "plant.k[1]=-4:-2:10", "--stop-time", "1.5", "--workers",
@@ -295,7 +295,7 @@ def test_a_run_whose_temporary_rows_fill_the_disk_first_says_so_and_keeps_the_cs
 def test_a_disk_full_from_the_start_writes_nothing_and_leaves_no_traceback(tmp_path, monkeypatch):
     import errno
 
-    from fmus import output
+    from obsfmu.fmus import output
     unraisable = []
     monkeypatch.setattr(sys, "unraisablehook", unraisable.append)
 
@@ -313,7 +313,7 @@ def test_a_disk_full_from_the_start_writes_nothing_and_leaves_no_traceback(tmp_p
 def test_a_file_replaced_on_a_full_disk_keeps_its_previous_version_and_is_named(tmp_path):
     import errno
 
-    from fmus.output import OutputError, replacing
+    from obsfmu.fmus.output import OutputError, replacing
     target = tmp_path / "report.html"
     target.write_text("previous\n")
     with pytest.raises(OutputError, match=rf"^{target}: cannot be written \(No space left on device\)$"):
@@ -339,8 +339,8 @@ def _tainted(value):
 @pytest.fixture(scope="module")
 def ship_results(build_dir, tmp_path_factory):
     """A short ``ship`` run saved as ``obsfmu all`` saves it (figure, summary, record)."""
-    from fmus import report
-    from fmus.scenarios import run
+    from obsfmu.fmus import report
+    from obsfmu.fmus.scenarios import run
     out = tmp_path_factory.mktemp("results") / "results"
     out.mkdir()
     result, summary = run("ship", build_dir, stop_time=0.05, step=1e-4)
@@ -352,7 +352,7 @@ def test_a_tainted_record_is_written_escaped_and_embeds_no_file_from_outside(shi
     import json
     import shutil
 
-    from fmus import report
+    from obsfmu.fmus import report
     out = tmp_path / "results"
     shutil.copytree(ship_results, out)
     secret = tmp_path / "secret.svg"
@@ -384,7 +384,7 @@ def test_a_record_of_another_shape_is_not_used(ship_results, tmp_path, field, va
     import json
     import shutil
 
-    from fmus import report
+    from obsfmu.fmus import report
     out = tmp_path / "results"
     shutil.copytree(ship_results, out)
     record = json.loads((out / "ship.json").read_text())
@@ -401,8 +401,8 @@ def test_every_claim_is_marked_met_or_not_met_with_its_numbers(ship_results, tmp
     import shutil
     from html import unescape
 
-    from fmus import report
-    from fmus.claims import CHECKS, reference_interval, verdict
+    from obsfmu.fmus import report
+    from obsfmu.fmus.claims import CHECKS, reference_interval, verdict
     assert verdict(CHECKS["uio-ftdrem"][1], {"t_omega_1e-4": 4.168}, "s") == \
         ("not met", "measured 4.168 s, claimed: at most 3.4 s")                     # the audit's case
     assert verdict(CHECKS["uio-ftdrem"][1], {"t_omega_1e-4": float("inf")}, "s")[0] == "not met"

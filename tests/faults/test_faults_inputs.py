@@ -19,9 +19,9 @@ from pathlib import Path
 
 import pytest
 
-from fmus.master import SimulationError, cache
-from fmus.runtime import state_format
-from fmus.scenarios import ensure_fmus, get
+from obsfmu.fmus.master import SimulationError, cache
+from obsfmu.fmus.runtime import state_format
+from obsfmu.fmus.scenarios import ensure_fmus, get
 
 ROOT = Path(__file__).resolve().parents[2]
 MiB = 1 << 20
@@ -58,7 +58,7 @@ def test_a_zip_bomb_fmu_is_refused_by_the_cli_at_once_and_leaves_nothing(build_d
         shutil.copy(path, bombs / path.name) if bombs.is_dir() else (bombs.mkdir(), shutil.copy(path, bombs))
     _with_entry(fmus["ship_plant"], bombs, "resources/padding.bin", 64 * MiB)
     store = tmp_path / "store"
-    done = subprocess.run([sys.executable, "-m", "fmus.cli", "run", "ship", "--build-dir", str(bombs),
+    done = subprocess.run([sys.executable, "-m", "obsfmu", "run", "ship", "--build-dir", str(bombs),
                            "--stop-time", "0.01"], capture_output=True, text=True, cwd=ROOT,
                           env={**__import__("os").environ, "OBSFMU_CACHE": str(store)}, timeout=300)
     assert done.returncode == 2, done.stderr
@@ -135,7 +135,7 @@ _HUGE_STATE = r"""
 import ctypes, resource, struct, sys
 sys.path[:0] = [sys.argv[2]]
 from faults_support import Probe
-from fmus.runtime.state_format import FORMAT_VERSION, MAGIC, MAX_STATE_BYTES
+from obsfmu.fmus.runtime.state_format import FORMAT_VERSION, MAGIC, MAX_STATE_BYTES
 probe = Probe(sys.argv[1])
 before = probe.state_bytes()
 size = MAX_STATE_BYTES + 4096

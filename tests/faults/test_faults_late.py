@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from faults_support import OK, gauss_seidel, start_for_gauss_seidel
-from fmus.scenarios import ensure_fmus, get
+from obsfmu.fmus.scenarios import ensure_fmus, get
 
 RUNNING, SETTLED = 0.0, 1.0
 
@@ -135,10 +135,10 @@ def test_state_affine_states_across_the_finite_time_switch(build_dir, name, h, t
 def test_the_adaptive_master_through_the_switch_agrees_with_the_reference(build_dir):
     """The adaptive master saves and restores every FMU on every step (step doubling); through the
     chemostat's switch at 1.62 h it must still land on the independent Radau reference."""
-    from fmus.master import cosimulate
-    from fmus.scenarios import state_affine_chemostat as chemostat
-    from fmus.scenarios import state_affine_common as common
-    from fmus.scenarios import system
+    from obsfmu.fmus.master import cosimulate
+    from obsfmu.fmus.scenarios import state_affine_chemostat as chemostat
+    from obsfmu.fmus.scenarios import state_affine_common as common
+    from obsfmu.fmus.scenarios import system
 
     scenario = get("state-affine-chemostat")
     result = cosimulate(system(scenario, ensure_fmus(scenario, build_dir)), 1.8, 2e-3, order="adaptive",

@@ -18,7 +18,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from faults_support import ERROR, OK, LiveProbes, Probe
-from fmus.runtime.state_format import FORMAT_VERSION, decode, encode, pack
+from obsfmu.fmus.runtime.state_format import FORMAT_VERSION, decode, encode, pack
 
 KINDS = ["generator-plant", "gpebo-observer", "lti-plant", "ltv-adaptive-observer", "ltv-disturbed-plant",
          "ltv-output-nonlinear-plant", "luenberger-observer", "signal-source", "state-affine-chemostat",
@@ -259,10 +259,10 @@ def malicious_pickles(marker) -> dict[str, bytes]:
     command = f"touch {marker}"
     return {
         "pickle of os.system": pickle.dumps(_Run(command)),
-        "fmus.runtime.callables.resolve('os:system')": b"\x80\x04" + _stack_global("fmus.runtime.callables", "resolve")
+        "fmus.runtime.callables.resolve('os:system')": b"\x80\x04" + _stack_global("obsfmu.fmus.runtime.callables", "resolve")
         + _call1("os:system") + _call1(command) + b".",
-        "fmus.native + os.system": b"\x80\x04" + _stack_global("fmus.native", "os.system") + _call1(command) + b".",
-        "fmus.native + subprocess.getoutput": b"\x80\x04" + _stack_global("fmus.native", "subprocess.getoutput")
+        "fmus.native + os.system": b"\x80\x04" + _stack_global("obsfmu.fmus.native", "os.system") + _call1(command) + b".",
+        "fmus.native + subprocess.getoutput": b"\x80\x04" + _stack_global("obsfmu.fmus.native", "subprocess.getoutput")
         + _call1(command) + b".",
         "numpy.lib._datasource + os.system": b"\x80\x04" + _stack_global("numpy.lib._datasource", "os.system")
         + _call1(command) + b".",
@@ -304,7 +304,7 @@ def test_pickles_that_would_run_a_command_are_refused_and_run_nothing(live, kind
 @settings(max_examples=300, derandomize=True, deadline=None, database=None)
 @given(st.binary(max_size=400))
 def test_decoding_any_bytes_gives_data_or_a_clear_error(data):
-    from fmus.runtime.state_format import StateFormatError
+    from obsfmu.fmus.runtime.state_format import StateFormatError
     try:
         decode(data)
     except StateFormatError:
@@ -314,7 +314,7 @@ def test_decoding_any_bytes_gives_data_or_a_clear_error(data):
 @settings(max_examples=200, derandomize=True, deadline=None, database=None)
 @given(st.data())
 def test_decoding_mutated_payloads_gives_data_or_a_clear_error(data):
-    from fmus.runtime.state_format import StateFormatError
+    from obsfmu.fmus.runtime.state_format import StateFormatError
     good = encode({"a": np.arange(6.0).reshape(2, 3), "b": [1, 2.5, None, True, "text"],
                    "c": (np.array([True, False]), np.zeros(0, dtype=np.int64)), "d": {"e": np.array([1 + 2j])}})
     bad = bytearray(good)
@@ -327,7 +327,7 @@ def test_decoding_mutated_payloads_gives_data_or_a_clear_error(data):
 
 
 def test_declared_lengths_beyond_the_buffer_allocate_nothing():
-    from fmus.runtime.state_format import StateFormatError
+    from obsfmu.fmus.runtime.state_format import StateFormatError
     huge_array = b"a\x00\x02" + struct.pack("<QQ", 2 ** 40, 2 ** 40)
     huge_list = b"l" + struct.pack("<I", 2 ** 32 - 1)
     huge_string = b"s" + struct.pack("<I", 2 ** 32 - 1)

@@ -12,10 +12,10 @@ from fmpy.model_description import ModelDescription, ScalarVariable
 from fmpy.validation import _validate_variable_names
 from fmpy.validation import validate_fmu as fmpy_validate
 
-import fmus.scenarios as scenarios
-from fmus.cli import main as cli, runs
-from fmus.master import SimulationError
-from fmus.validation import plain_name, validate_fmu
+import obsfmu.fmus.scenarios as scenarios
+from obsfmu.fmus.cli import main as cli, runs
+from obsfmu.fmus.master import SimulationError
+from obsfmu.fmus.validation import plain_name, validate_fmu
 
 NAMES = ["x", "x_hat[1]", "A[12,3]", "a.b[1].c", "_", "der(x)", "der(x[1],2)", "x[01]",
          "1x", "x[]", "x[1,]", "x [1]", "der(x", "a..b", "x[1][2]", "x[-1]", "'quoted name'", "é"]
@@ -89,9 +89,9 @@ def test_two_scenarios_defining_one_fmu_differently_are_refused(monkeypatch, tmp
 def test_a_stop_signal_during_a_build_is_taken_once_the_fmu_is_complete(monkeypatch, tmp_path, signum):
     """The signal comes while the archive is written (a cut there leaves zipfile unable to close); it is raised
     when the FMU is complete, and nothing else is left: no partial archive, no temporary build folder."""
-    from fmus import builder
-    from fmus.cli import stopping
-    from fmus.runtime.kinds.signals import source_definition
+    from obsfmu.fmus import builder
+    from obsfmu.fmus.cli import stopping
+    from obsfmu.fmus.runtime.kinds.signals import source_definition
 
     scratch = tmp_path / "tmp"
     scratch.mkdir()

@@ -5,8 +5,8 @@ import textwrap
 import numpy as np
 import pytest
 
-from fmus.config import design_from_config, load_config
-from observers.checks import ParameterError
+from obsfmu.fmus.config import design_from_config, load_config
+from obsfmu.observers.checks import ParameterError
 
 SHIP = {
     "name": "ship",

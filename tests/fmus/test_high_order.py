@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 
 from benchmarks.high_order import chain_config, input_system, modes_config
-from fmus.builder import build_fmu
-from fmus.config import design_from_config
-from fmus.master import Component, System, cosimulate
-from observers.checks import ParameterError
-from observers.modal import POLE_ACCURACY, ackermann, controllable_dimension, pole_deviation, transient_growth
+from obsfmu.fmus.builder import build_fmu
+from obsfmu.fmus.config import design_from_config
+from obsfmu.fmus.master import Component, System, cosimulate
+from obsfmu.observers.checks import ParameterError
+from obsfmu.observers.modal import POLE_ACCURACY, ackermann, controllable_dimension, pole_deviation, transient_growth
 
 
 @pytest.mark.parametrize("n", [20, 50])

@@ -15,13 +15,13 @@ from xml.etree import ElementTree
 import numpy as np
 import pytest
 
-from fmus.cli import main as cli
-from fmus.export import export
-from fmus.master import cosimulate
-from fmus.scenarios import ensure_fmus, get, run, system
+from obsfmu.fmus.cli import main as cli
+from obsfmu.fmus.export import export
+from obsfmu.fmus.master import cosimulate
+from obsfmu.fmus.scenarios import ensure_fmus, get, run, system
 
-from fmus.scenarios.ship.reference import K
-from fmus.scenarios.ship.reference import exact as ship_exact
+from obsfmu.fmus.scenarios.ship.reference import K
+from obsfmu.fmus.scenarios.ship.reference import exact as ship_exact
 
 
 @pytest.fixture(scope="module")
@@ -163,8 +163,8 @@ def test_adaptive_master_meets_the_tolerance_on_ship(build_dir, tolerance):
 
 
 def test_adaptive_master_refuses_fmus_that_cannot_roll_back(build_dir, monkeypatch):
-    from fmus.master import SimulationError
-    from fmus.master.fmi2 import Fmi2Instance
+    from obsfmu.fmus.master import SimulationError
+    from obsfmu.fmus.master.fmi2 import Fmi2Instance
     fmus = ensure_fmus(get("ship"), build_dir)
     original = Fmi2Instance.__init__
 
@@ -206,7 +206,7 @@ def test_ecos_runs_the_ssp_package_like_our_jacobi_master(build_dir, tmp_path):
 
 @pytest.fixture(scope="module")
 def bounded_reference():
-    from fmus.scenarios.ltv_common import load_reference
+    from obsfmu.fmus.scenarios.ltv_common import load_reference
     return load_reference("bounded")
 
 
@@ -218,7 +218,7 @@ def parameter_error(result, reference) -> float:
 
 def test_masters_on_the_bounded_ltv_case(build_dir, bounded_reference):
     """ltv-ls-bounded (20 s) against its stored monolithic Radau reference."""
-    from fmus.scenarios.ltv_common import reference as paper001
+    from obsfmu.fmus.scenarios.ltv_common import reference as paper001
 
     held, _ = run("ltv-ls-bounded", build_dir, step=1e-3, coupling="hold")
     interpolated, _ = run("ltv-ls-bounded", build_dir, step=1e-2, coupling="linear")

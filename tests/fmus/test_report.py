@@ -16,9 +16,9 @@ import pytest
 from fmpy import read_model_description
 from scipy.linalg import expm
 
-from fmus import plotting, report
-from fmus.cli import main as cli
-from fmus.scenarios import SCENARIOS, get, run
+from obsfmu.fmus import plotting, report
+from obsfmu.fmus.cli import main as cli
+from obsfmu.fmus.scenarios import SCENARIOS, get, run
 
 #: short runs: enough for every panel to have data, cheap enough for the suite
 SHORT = {
@@ -230,7 +230,7 @@ def test_the_report_states_the_fmi_facts_and_is_self_contained(page, runs):
 def test_every_claim_is_checked_and_every_number_says_where_it_holds(page, runs):
     """Each scenario's claim has checks of metrics its summary has; every metric of every scenario has an
     interval; the page marks each check met / not met / not measured."""
-    from fmus.claims import CHECKS, holds_over
+    from obsfmu.fmus.claims import CHECKS, holds_over
     out, done = runs
     html = (out / "report.html").read_text()
     for name, (result, summary, _) in done.items():

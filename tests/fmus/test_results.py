@@ -17,9 +17,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fmus.output import StreamingRecorder, partial_path, replacing
-from fmus.result import Result
-from fmus.scenarios import ensure_fmus, get
+from obsfmu.fmus.output import StreamingRecorder, partial_path, replacing
+from obsfmu.fmus.result import Result
+from obsfmu.fmus.scenarios import ensure_fmus, get
 
 COLUMNS = ["a.x[1]", "a.x[2]", "b.y"]
 
@@ -124,7 +124,7 @@ def long_run(build_dir):
     ensure_fmus(get("ship"), build_dir)
 
     def start(csv: Path) -> subprocess.Popen:
-        return subprocess.Popen([sys.executable, "-m", "fmus.cli", "run", "ship", "--build-dir", str(build_dir),
+        return subprocess.Popen([sys.executable, "-m", "obsfmu", "run", "ship", "--build-dir", str(build_dir),
                                  "--step", "1e-3", "--stop-time", "1e5", "--csv", str(csv)],
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     return start

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from observers import expressions
-from observers.expressions import MAX_DEPTH, MAX_LENGTH, ExpressionError, Names, Source, compile_expression, \
+from obsfmu.observers import expressions
+from obsfmu.observers.expressions import MAX_DEPTH, MAX_LENGTH, ExpressionError, Names, Source, compile_expression, \
     compile_vector
 
 NAMES = Names(x=3, u=2, p=3, parameters={"k": 1, "c": 2, "alpha": 3})

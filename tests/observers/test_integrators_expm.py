@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from scipy.linalg import expm as scipy_expm
 
-from observers.integrators import LinearPropagator, expm
+from obsfmu.observers.integrators import LinearPropagator, expm
 
 
 def _relative(E, R) -> float:

@@ -5,13 +5,13 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.linalg import expm
 
-from observers.block import Segment
-from observers.checks import ParameterError
-from observers.feedback import StateFeedback
-from observers.integrators import LinearPropagator, rk4_step
-from observers.luenberger import LuenbergerObserver
-from observers.modal import observer_gain
-from plants.lti import LTIPlant
+from obsfmu.observers.block import Segment
+from obsfmu.observers.checks import ParameterError
+from obsfmu.observers.feedback import StateFeedback
+from obsfmu.observers.integrators import LinearPropagator, rk4_step
+from obsfmu.observers.luenberger import LuenbergerObserver
+from obsfmu.observers.modal import observer_gain
+from obsfmu.plants.lti import LTIPlant
 
 
 def test_linear_propagator_is_exact_for_a_linear_input():

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 from scipy.special import comb
 
-from observers.checks import ParameterError
-from observers.modal import (ackermann, design_observer, design_state_feedback, observer_gain, place)
-from observers.standard_forms import binomial, butterworth, settling_time, standard_poles
+from obsfmu.observers.checks import ParameterError
+from obsfmu.observers.modal import (ackermann, design_observer, design_state_feedback, observer_gain, place)
+from obsfmu.observers.standard_forms import binomial, butterworth, settling_time, standard_poles
 
 A_SHIP = np.array([[0.0, 1.0], [-2.0, 3.0]])
 B_SHIP = np.array([[0.0], [1.0]])

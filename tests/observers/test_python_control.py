@@ -6,11 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from observers.checks import ParameterError
-from observers.lti_model import StateSpace
-from observers.modal import ackermann, design_observer, design_state_feedback, observer_gain, place
-from plants.lti import LTIPlant
-from observers.block import Segment
+from obsfmu.observers.checks import ParameterError
+from obsfmu.observers.lti_model import StateSpace
+from obsfmu.observers.modal import ackermann, design_observer, design_state_feedback, observer_gain, place
+from obsfmu.plants.lti import LTIPlant
+from obsfmu.observers.block import Segment
 
 control = pytest.importorskip("control")
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from observers.checks import unbounded_mode
+from obsfmu.observers.checks import unbounded_mode
 
 
 @pytest.mark.parametrize("matrix", [

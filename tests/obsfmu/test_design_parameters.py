@@ -60,13 +60,13 @@ def test_a_bad_design_is_an_error_naming_the_parameter(folder):
 
 
 def test_set_parses_a_list_into_elements():
-    from fmus.scenarios import parse_overrides
+    from obsfmu.fmus.scenarios import parse_overrides
     assert parse_overrides(["observer.poles=[-10, -12,-14]"]) == [
         ("observer", "poles[1]", -10.0), ("observer", "poles[2]", -12.0), ("observer", "poles[3]", -14.0)]
 
 
 def test_the_cli_sets_a_design_by_a_list_and_refuses_a_bad_one_in_one_line(folder, capsys):
-    from fmus.cli import main as cli
+    from obsfmu.fmus.cli import main as cli
     path = observed({"poles": [-5.0, -6.0]}).save(folder / "poles.toml")
     build = str(folder / "build")
     assert cli.main(["run", "--config", str(path), "--build-dir", build, "--set", "observer.poles=[-10,-12]"]) == 0

@@ -130,6 +130,6 @@ def test_the_csv_names_survive_genfromtxt_as_docs_python_md_says(example, tmp_pa
 def test_the_cli_prints_its_version(capsys):
     from importlib.metadata import version
 
-    from fmus.cli import main as cli
+    from obsfmu.fmus.cli import main as cli
     assert cli.main(["--version"]) == 0
     assert capsys.readouterr().out.strip() == f"obsfmu {version('obsfmu')}"

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from observers.block import Segment
-from observers.checks import SignalError
-from observers.expressions import Names, Source, compile_vector
-from plants.expression import ExpressionPlant
+from obsfmu.observers.block import Segment
+from obsfmu.observers.checks import SignalError
+from obsfmu.observers.expressions import Names, Source, compile_vector
+from obsfmu.plants.expression import ExpressionPlant
 
 DUFFING = Names(x=2, u=1, p=4, parameters={"delta": 1, "alpha": 2, "beta": 3, "gain": 4})
 P = np.array([0.3, -1.0, 1.0, 0.8])

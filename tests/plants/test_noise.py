@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 from scipy.linalg import expm, solve_discrete_lyapunov
 
-from observers.checks import ParameterError
-from observers.state import capture
-from observers.integrators import BudgetError
-from plants.noise import CHECKPOINT, AddedNoise, Noise, NoiseSource
-from plants.signals import SampledNoise
+from obsfmu.observers.checks import ParameterError
+from obsfmu.observers.state import capture
+from obsfmu.observers.integrators import BudgetError
+from obsfmu.plants.noise import CHECKPOINT, AddedNoise, Noise, NoiseSource
+from obsfmu.plants.signals import SampledNoise
 
 #: number of sample intervals x streams of the statistical tests
 INTERVALS, STREAMS = 4000, 25

@@ -9,9 +9,9 @@ import math
 import numpy as np
 import pytest
 
-from observers.checks import ParameterError
-from observers.state import capture
-from plants.sources import (PRBS, PRIMITIVE_TAPS, Chirp, Constant, CsvColumn, MultiSine, Ramp, Sine, Square, Step,
+from obsfmu.observers.checks import ParameterError
+from obsfmu.observers.state import capture
+from obsfmu.plants.sources import (PRBS, PRIMITIVE_TAPS, Chirp, Constant, CsvColumn, MultiSine, Ramp, Sine, Square, Step,
                             Table, interval_index)
 
 TIMES = np.linspace(-1.0, 7.0, 1601)

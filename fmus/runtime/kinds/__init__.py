@@ -17,8 +17,8 @@ from typing import Any
 
 import numpy as np
 
-from observers.block import Block
-from observers.checks import ParameterError
+from obsfmu.observers.block import Block
+from obsfmu.observers.checks import ParameterError
 
 from ..bundled import local_name, portable_name
 

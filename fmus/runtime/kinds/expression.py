@@ -18,9 +18,9 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from observers.checks import ParameterError
-from observers.expressions import CONSTANTS, FUNCTIONS, VECTORS, Names, Source, compile_vector
-from plants.expression import ExpressionPlant
+from obsfmu.observers.checks import ParameterError
+from obsfmu.observers.expressions import CONSTANTS, FUNCTIONS, VECTORS, Names, Source, compile_vector
+from obsfmu.plants.expression import ExpressionPlant
 
 from ..definition import FmuDefinition, Parameter, Port, valid_identifier
 from .linear import vector_unit

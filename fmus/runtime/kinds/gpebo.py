@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from observers.gpebo import GeneratorModel, GpeboObserver
-from plants.gpebo import EXAMPLE, GeneratorPlant
+from obsfmu.observers.gpebo import GeneratorModel, GpeboObserver
+from obsfmu.plants.gpebo import EXAMPLE, GeneratorPlant
 
 from ..callables import resolve
 from ..definition import FmuDefinition, Parameter, Port

@@ -8,12 +8,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from observers.feedback import StateFeedback
-from observers.luenberger import LuenbergerObserver
-from observers.checks import ParameterError
-from observers.lti_model import StateSpace
-from observers.modal import MAX_TRANSIENT_GROWTH, desired_poles, observer_gain, shifted_poles, transient_growth
-from plants.lti import LTIPlant
+from obsfmu.observers.feedback import StateFeedback
+from obsfmu.observers.luenberger import LuenbergerObserver
+from obsfmu.observers.checks import ParameterError
+from obsfmu.observers.lti_model import StateSpace
+from obsfmu.observers.modal import MAX_TRANSIENT_GROWTH, desired_poles, observer_gain, shifted_poles, transient_growth
+from obsfmu.plants.lti import LTIPlant
 
 from ..definition import FmuDefinition, Parameter, Port
 from . import register

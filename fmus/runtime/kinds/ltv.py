@@ -14,14 +14,14 @@ from collections.abc import Callable
 
 import numpy as np
 
-from observers.checks import ParameterError
-from observers.integrators import DEFAULT_SUBSTEP_BUDGET
-from observers.ltv import LTVAdaptiveObserver
-from observers.ltv.estimators import ESTIMATORS, require_exact
-from observers.ltv.model import Nonlinearities, OutputVector
-from observers.ltv.observer import PARTS
-from plants.ltv import OutputNonlinearLTVPlant
-from plants.signals import SampledNoise
+from obsfmu.observers.checks import ParameterError
+from obsfmu.observers.integrators import DEFAULT_SUBSTEP_BUDGET
+from obsfmu.observers.ltv import LTVAdaptiveObserver
+from obsfmu.observers.ltv.estimators import ESTIMATORS, require_exact
+from obsfmu.observers.ltv.model import Nonlinearities, OutputVector
+from obsfmu.observers.ltv.observer import PARTS
+from obsfmu.plants.ltv import OutputNonlinearLTVPlant
+from obsfmu.plants.signals import SampledNoise
 
 from ..callables import reference, resolve
 from ..definition import FmuDefinition, Parameter, Port

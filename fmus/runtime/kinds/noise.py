@@ -10,7 +10,7 @@ noise is band-limited, ``filter_order``, ``interval_budget``); ``distribution`` 
 
 from __future__ import annotations
 
-from plants.noise import AddedNoise, Noise, NoiseSource
+from obsfmu.plants.noise import AddedNoise, Noise, NoiseSource
 
 from ..definition import FmuDefinition, Parameter, Port
 from . import register

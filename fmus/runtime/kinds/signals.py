@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from plants.signals import SampledNoise, SignalSource, Waveform
+from obsfmu.plants.signals import SampledNoise, SignalSource, Waveform
 
 from ..definition import FmuDefinition, Parameter, Port
 from . import register

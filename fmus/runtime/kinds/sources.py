@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from plants.sources import PRBS, Chirp, Constant, CsvColumn, MultiSine, Ramp, Sine, Square, Step, Table
+from obsfmu.plants.sources import PRBS, Chirp, Constant, CsvColumn, MultiSine, Ramp, Sine, Square, Step, Table
 
 from ..definition import FmuDefinition, Parameter, Port
 from . import register

@@ -14,10 +14,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from observers.integrators import DEFAULT_SUBSTEP_BUDGET
-from observers.state_affine import StateAffineModel, StateAffineObserver
-from observers.state_affine.observer import SUBSTEP_BUDGET
-from plants.state_affine import Chemostat, Pendulum
+from obsfmu.observers.integrators import DEFAULT_SUBSTEP_BUDGET
+from obsfmu.observers.state_affine import StateAffineModel, StateAffineObserver
+from obsfmu.observers.state_affine.observer import SUBSTEP_BUDGET
+from obsfmu.plants.state_affine import Chemostat, Pendulum
 
 from ..callables import resolve
 from ..definition import FmuDefinition, Parameter, Port

@@ -15,11 +15,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from observers.checks import ParameterError
-from observers.integrators import DEFAULT_SUBSTEP_BUDGET
-from observers.uio import UIOFiniteTimeObserver, UIOSettings
-from plants.uio import DisturbedLTVPlant
-from plants.signals import SampledNoise
+from obsfmu.observers.checks import ParameterError
+from obsfmu.observers.integrators import DEFAULT_SUBSTEP_BUDGET
+from obsfmu.observers.uio import UIOFiniteTimeObserver, UIOSettings
+from obsfmu.plants.uio import DisturbedLTVPlant
+from obsfmu.plants.signals import SampledNoise
 
 from ..definition import FmuDefinition, Parameter, Port
 from . import register

@@ -2,7 +2,7 @@
 
 Every FMU of the project contains a two-line module (``fmus.builder.SLAVE_TEMPLATE``)::
 
-    from fmus.runtime.slave import BlockSlave
+    from obsfmu.fmus.runtime.slave import BlockSlave
     class ship_observer(BlockSlave):
         definition_file = "ship_observer.json"
 
@@ -41,8 +41,8 @@ from pythonfmu import Fmi2Slave
 from pythonfmu.enums import Fmi2Status
 from pythonfmu.default_experiment import DefaultExperiment
 
-from observers.block import MAGNITUDE_BOUND, Block
-from observers.state import Leaves
+from obsfmu.observers.block import MAGNITUDE_BOUND, Block
+from obsfmu.observers.state import Leaves
 
 from ..definition import FmuDefinition
 from .block import BlockOfParameters

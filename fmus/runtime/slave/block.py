@@ -11,9 +11,9 @@ import math
 
 import numpy as np
 
-from observers.block import MAGNITUDE_BOUND, Block
-from observers.checks import ParameterError
-from observers.state import Leaves, out_of_bounds, within, within_bound
+from obsfmu.observers.block import MAGNITUDE_BOUND, Block
+from obsfmu.observers.checks import ParameterError
+from obsfmu.observers.state import Leaves, out_of_bounds, within, within_bound
 
 from ..kinds import create_block
 from .common import NUMERICAL_FAULTS, Refused, verdict

@@ -16,8 +16,8 @@ from xml.etree.ElementTree import ParseError, iterparse
 
 import numpy as np
 
-from observers.block import Block
-from observers.state import Leaves, StateError, capture, plain, within
+from obsfmu.observers.block import Block
+from obsfmu.observers.state import Leaves, StateError, capture, plain, within
 
 from ..state_format import StateFormatError, pack, unpack
 from .common import InputMode, Refused

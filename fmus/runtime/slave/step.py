@@ -21,8 +21,8 @@ import math
 import numpy as np
 from pythonfmu.enums import Fmi2Status
 
-from observers.block import Block, Segment
-from observers.state import Leaves, StateError, capture, within, within_bound
+from obsfmu.observers.block import Block, Segment
+from obsfmu.observers.state import Leaves, StateError, capture, within, within_bound
 
 from .common import EXTRAPOLATE, INTERPOLATE, NUMERICAL_FAULTS, Refused, verdict
 from .numerics import host_independent_numerics

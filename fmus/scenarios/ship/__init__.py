@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from observers.integrators import expm
+from obsfmu.observers.integrators import expm
 
 from ...metrics import format_time, settling_time, time_to_stay_below
 from ...plotting import Curve, Panel, figure

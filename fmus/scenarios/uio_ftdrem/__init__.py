@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from observers.uio import UIODesign, uio_gain
+from obsfmu.observers.uio import UIODesign, uio_gain
 
 from ...metrics import format_time, time_to_stay_below
 from ...plotting import Curve, Panel, figure

@@ -12,14 +12,14 @@ import numpy as np
 import pyarrow.dataset as ds
 import pytest
 
-from fmus.cli import main as cli
-from fmus.campaign.design import Campaign
-from fmus.campaign.errors import CampaignError
-from fmus.campaign.measures import Measure, measure_for
-from fmus.campaign.progress import Progress
-from fmus.campaign.spec import Choice, Distribution, Grid, parse_spec
-from fmus.campaign.store import Store, load_rows
-from fmus.scenarios import SCENARIOS, get
+from obsfmu.fmus.cli import main as cli
+from obsfmu.fmus.campaign.design import Campaign
+from obsfmu.fmus.campaign.errors import CampaignError
+from obsfmu.fmus.campaign.measures import Measure, measure_for
+from obsfmu.fmus.campaign.progress import Progress
+from obsfmu.fmus.campaign.spec import Choice, Distribution, Grid, parse_spec
+from obsfmu.fmus.campaign.store import Store, load_rows
+from obsfmu.fmus.scenarios import SCENARIOS, get
 
 
 # -- the SPEC grammar
@@ -131,7 +131,7 @@ def test_the_plan_reports_units_and_resolved_settings(build_dir):
 
 def test_a_sweep_of_a_system_file_takes_its_experiment(build_dir, tmp_path):
     """``obsfmu sweep --config FILE``: the file's step, master and tolerance unless an option is given."""
-    from fmus.campaign.cli import campaign_from_args
+    from obsfmu.fmus.campaign.cli import campaign_from_args
     path = tmp_path / "ship.toml"
     path.write_text(get("ship").system_file.read_text().replace('master = "gauss-seidel"',
                                                                  'master = "adaptive"\ntolerance = 3e-5'))
@@ -144,7 +144,7 @@ def test_a_sweep_of_a_system_file_takes_its_experiment(build_dir, tmp_path):
 
 
 def test_sweep_times_take_units_like_run():
-    from fmus.campaign.cli import campaign_from_args
+    from obsfmu.fmus.campaign.cli import campaign_from_args
     args = cli.parser().parse_args(["sweep", "state-affine-chemostat", "--vary", "plant.x0[1]=1,2",
                                     "--stop-time", "90min", "--step", "7.2s"])
     campaign = campaign_from_args(args)
@@ -227,7 +227,7 @@ def test_the_progress_bar_shows_done_total_failures_and_eta():
 # -- table, summary and figures from stored rows (--report-only: nothing is computed, no cluster)
 
 def test_report_only_builds_the_table_summary_and_figures_from_stored_rows(build_dir, tmp_path):
-    from fmus.campaign.runner import run_campaign
+    from obsfmu.fmus.campaign.runner import run_campaign
 
     plan = _gpebo(build_dir, vary={"source.amplitude[1]": "[0, 1, 2]"}).plan()
     a, b, c = plan.samples

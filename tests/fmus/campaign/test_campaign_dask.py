@@ -22,14 +22,14 @@ from pathlib import Path
 import distributed
 import pytest
 
-from fmus.cli import main as cli
-from fmus.campaign.design import Campaign
-from fmus.campaign.runner import local_cluster, run_campaign
-from fmus.campaign.store import load_rows
-from fmus.result import Result
-from fmus.scenarios import get
+from obsfmu.fmus.cli import main as cli
+from obsfmu.fmus.campaign.design import Campaign
+from obsfmu.fmus.campaign.runner import local_cluster, run_campaign
+from obsfmu.fmus.campaign.store import load_rows
+from obsfmu.fmus.result import Result
+from obsfmu.fmus.scenarios import get
 
-OBSFMU = [sys.executable, "-m", "fmus.cli"]
+OBSFMU = [sys.executable, "-m", "obsfmu"]
 
 
 @pytest.fixture(scope="module")

@@ -12,7 +12,7 @@ def test_a_closed_standard_output_is_no_error_message_and_exits_as_sigpipe():
     read_end, write_end = os.pipe()
     os.close(read_end)                          # the reader is gone before the first line is written
     try:
-        process = subprocess.run([sys.executable, "-m", "fmus.cli", "show", "--fields"], stdout=write_end,
+        process = subprocess.run([sys.executable, "-m", "obsfmu", "show", "--fields"], stdout=write_end,
                                  stderr=subprocess.PIPE, text=True, timeout=120)
     finally:
         os.close(write_end)

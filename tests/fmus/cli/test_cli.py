@@ -18,12 +18,12 @@ import numpy as np
 import pytest
 from fmpy import read_model_description
 
-from fmus.cli import main as cli
-from fmus.cli import commands
-from fmus.cli.commands import run_into
-from fmus.cli.stopping import StopRequest
-from fmus.result import Result
-from fmus.scenarios import SCENARIOS, ensure_fmus, get
+from obsfmu.fmus.cli import main as cli
+from obsfmu.fmus.cli import commands
+from obsfmu.fmus.cli.commands import run_into
+from obsfmu.fmus.cli.stopping import StopRequest
+from obsfmu.fmus.result import Result
+from obsfmu.fmus.scenarios import SCENARIOS, ensure_fmus, get
 
 
 def _unwritable_directory(tmp_path):
@@ -252,7 +252,7 @@ def test_a_signal_swallowed_outside_a_run_still_stops_the_command_before_its_run
 
 
 def test_a_stop_asked_after_the_last_run_writes_no_report_and_exits_with_the_signal(tmp_path, monkeypatch):
-    from fmus import report
+    from obsfmu.fmus import report
     monkeypatch.setattr(commands, "run_into", lambda out, build_dir, names, stop, jobs: stop._handle(signal.SIGTERM,
                                                                                                      None) or 0)
     monkeypatch.setattr(report, "write_report", lambda *a: pytest.fail("report written after a stop"))
@@ -350,8 +350,8 @@ _INTERRUPTIBLE = """
 import sys
 from pathlib import Path
 
-from fmus.cli.commands import run_into
-from fmus.cli.stopping import StopRequest
+from obsfmu.fmus.cli.commands import run_into
+from obsfmu.fmus.cli.stopping import StopRequest
 
 if __name__ == "__main__":   # the workers are spawned: they import this file as a module
     settings = {"ship": {"stop_time": 1e5, "step": 1e-3}, "uio-ftdrem": {"stop_time": 1e5}}   # run until stopped

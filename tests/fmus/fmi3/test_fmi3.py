@@ -20,10 +20,10 @@ from fmpy.fmi2 import FMU2Slave
 from fmpy.fmi3 import FMU3Slave
 from fmpy.validation import validate_fmu
 
-from fmus.cli import main as cli
-from fmus.fmi3.elements import elements
-from fmus.master import cosimulate
-from fmus.scenarios import SCENARIOS, ensure_fmus, get, run, system
+from obsfmu.fmus.cli import main as cli
+from obsfmu.fmus.fmi3.elements import elements
+from obsfmu.fmus.master import cosimulate
+from obsfmu.fmus.scenarios import SCENARIOS, ensure_fmus, get, run, system
 
 #: fixed-step runs of every scenario: 25 steps of its own step, its own order and coupling
 STEPS = 25

@@ -22,9 +22,9 @@ import numpy as np
 import pytest
 from fmpy import read_model_description, simulate_fmu
 
-from fmus.export import export, identifier
-from fmus.master import Component, Session, SimulationError, System
-from fmus.scenarios import get, run
+from obsfmu.fmus.export import export, identifier
+from obsfmu.fmus.master import Component, Session, SimulationError, System
+from obsfmu.fmus.scenarios import get, run
 
 SSD = "{http://ssp-standard.org/SSP1/SystemStructureDescription}"
 SSV = "{http://ssp-standard.org/SSP1/SystemStructureParameterValues}"

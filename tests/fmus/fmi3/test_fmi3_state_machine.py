@@ -19,7 +19,7 @@ from fmpy.fmi2 import FMU2Slave
 from fmpy.fmi3 import FMU3Slave
 
 from fmi3_support import DISCARD, ERROR, OK, WARNING, Raw
-from fmus.runtime.state_format import decode, pack
+from obsfmu.fmus.runtime.state_format import decode, pack
 
 STATES = ["instantiated", "initializationMode", "stepMode", "terminated"]
 EVERY = set(STATES)

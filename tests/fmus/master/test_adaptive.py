@@ -20,8 +20,8 @@ import warnings
 import numpy as np
 import pytest
 
-from fmus.master import SimulationError
-from fmus.scenarios import SCENARIOS, get, run
+from obsfmu.fmus.master import SimulationError
+from obsfmu.fmus.scenarios import SCENARIOS, get, run
 
 
 @pytest.mark.parametrize("name, reason", [("uio-ftdrem", "step doubling cannot measure this observer's error"),
@@ -53,7 +53,7 @@ def test_every_scenario_either_runs_adaptively_or_says_why():
 
 
 def test_a_tight_tolerance_on_the_bounded_ltv_case_finishes_and_meets_it(build_dir):
-    from fmus.scenarios.ltv_common import reference as paper001
+    from obsfmu.fmus.scenarios.ltv_common import reference as paper001
 
     with warnings.catch_warnings():
         warnings.simplefilter("error")                            # no step forced at the minimum
@@ -74,7 +74,7 @@ def test_a_short_run_is_judged_at_the_reference_points_it_passes_through(build_d
     through a spline between them the 2 s run seemed 2.5e-3 off the reference, while it is 4e-6 off at
     its own points.  The summary gives the deviation at the reference points the run passes through
     apart from the spline's."""
-    from fmus.scenarios.ltv_common import reference as paper001
+    from obsfmu.fmus.scenarios.ltv_common import reference as paper001
 
     result, summary = run("ltv-ls-bounded", build_dir, order="adaptive", tolerance=1e-4, stop_time=2.0)
     reference = paper001.simulate(result.time, **paper001.BOUNDED)

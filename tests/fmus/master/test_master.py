@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from fmus.master import Component, Connection, SimulationError, System, cosimulate
-from fmus.scenarios.ship import SCENARIO
+from obsfmu.fmus.master import Component, Connection, SimulationError, System, cosimulate
+from obsfmu.fmus.scenarios.ship import SCENARIO
 
 
 def ship_system(fmus, connections=None, start=None):
@@ -74,7 +74,7 @@ def test_the_extract_cache_skips_entries_another_process_removed(ship_fmus, tmp_
     partial extraction an hour old (a killed run's) goes, one in progress stays."""
     import os
 
-    from fmus.master import cache
+    from obsfmu.fmus.master import cache
 
     folder = tmp_path / "extracted"
     folder.mkdir()
@@ -98,8 +98,8 @@ def test_closing_a_session_leaves_another_of_the_same_fmus_running(build_dir, fm
     """Each FMU library is loaded once per session and unloaded once when it closes: closing one session
     must not unload the binaries another one still steps (fmpy's freeInstance unloads them already; a
     second unload crashed the process at the next call of the other session)."""
-    from fmus.master import Session
-    from fmus.scenarios import ensure_fmus
+    from obsfmu.fmus.master import Session
+    from obsfmu.fmus.scenarios import ensure_fmus
     fmus = ensure_fmus(SCENARIO, build_dir, fmi_version=fmi_version)
     with Session(ship_system(fmus), echo_log=False) as first:
         alone = first.run(0.005, 1e-3)
@@ -112,7 +112,7 @@ def test_closing_a_session_leaves_another_of_the_same_fmus_running(build_dir, fm
 _OTHER_RUN_PRUNES = """
 import sys
 from pathlib import Path
-from fmus.master import cache
+from obsfmu.fmus.master import cache
 root = Path(sys.argv[1])
 for n in range(cache.EXTRACT_CACHE_SIZE + 1):
     (root / f"newer-{n}").mkdir()
@@ -128,7 +128,7 @@ def test_a_session_keeps_its_extracted_fmus_while_other_runs_prune_the_cache(shi
     import subprocess
     import sys
 
-    from fmus.master import Session, cache
+    from obsfmu.fmus.master import Session, cache
 
     folder = tmp_path / "extracted"
     monkeypatch.setattr(cache, "EXTRACT_CACHE", folder)

@@ -9,9 +9,9 @@ import ctypes
 import numpy as np
 import pytest
 
-from fmus.master import Component, SimulationError, Session, System
-from fmus.master.round import NativeRound, Stepper
-from fmus.scenarios import ensure_fmus, get
+from obsfmu.fmus.master import Component, SimulationError, Session, System
+from obsfmu.fmus.master.round import NativeRound, Stepper
+from obsfmu.fmus.scenarios import ensure_fmus, get
 
 ERROR = 3
 

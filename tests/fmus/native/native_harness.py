@@ -15,7 +15,7 @@ from urllib.parse import quote
 import numpy as np
 from fmpy import extract, read_model_description
 
-from fmus.native import fmi_headers
+from obsfmu.fmus.native import fmi_headers
 
 SOURCE = Path(__file__).with_name("importer.c")
 
@@ -63,7 +63,7 @@ class Unzipped:
     @property
     def elements(self) -> dict:
         """FMI 2.0 element names -> FMI 3.0 elements (fmus/fmi3/elements.py); {} for an FMI 2.0 FMU."""
-        from fmus.fmi3.elements import elements
+        from obsfmu.fmus.fmi3.elements import elements
         return elements(self.description) if self.fmi3 else {}
 
     @property

@@ -26,7 +26,7 @@ LOADER = Path("/lib64/ld-linux-x86-64.so.2")
 
 def first_of_each_kind() -> dict:
     """kind -> (scenario, instance, model, start values) of the first FMU of each block kind of the scenarios."""
-    from fmus.scenarios import SCENARIOS
+    from obsfmu.fmus.scenarios import SCENARIOS
     kinds = {}
     for scenario in SCENARIOS.values():
         for item in scenario.definitions():

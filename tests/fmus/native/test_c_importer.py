@@ -14,8 +14,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fmus.native import OVERRIDE
-from fmus.scenarios import ensure_fmus, get, run
+from obsfmu.fmus.native import OVERRIDE
+from obsfmu.fmus.scenarios import ensure_fmus, get, run
 from native_harness import Unzipped, read_csv, run as run_importer, scenario_script
 
 #: scenario -> (stop time, communication step): short runs, the scenario's own coupling (linear)

@@ -13,7 +13,7 @@ import subprocess
 import numpy as np
 import pytest
 
-from fmus.scenarios import ensure_fmus, get, run
+from obsfmu.fmus.scenarios import ensure_fmus, get, run
 from native_harness import Unzipped, read_csv, run as run_importer, scenario_script
 
 #: (name, scenario, FMI 3.0 models, stop time, step): short runs at the scenario's coupling (linear)

@@ -28,8 +28,8 @@ import numpy as np
 import pytest
 from fmpy import read_model_description
 
-from fmus.fmi3.elements import elements
-from fmus.scenarios import ensure_fmus, get, run
+from obsfmu.fmus.fmi3.elements import elements
+from obsfmu.fmus.scenarios import ensure_fmus, get, run
 from test_third_party import fmusim, read_csv, run_tool, vendor_dir  # noqa: F401  (fixtures)
 
 #: (scenario, stop time): ship's feedback loop (its controller a direct feedthrough) and paper 001's bounded case

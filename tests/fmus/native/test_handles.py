@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from fmus.scenarios import ensure_fmus, get
+from obsfmu.fmus.scenarios import ensure_fmus, get
 from native_harness import Unzipped, run as run_importer
 
 OK, ERROR = 0, 3
@@ -91,7 +91,7 @@ def float64_variables(unzipped):
 def test_fmi3_get_float64_of_every_variable_with_time(importer, build_dir, tmp_path, model):
     """fmusim asks fmi3GetFloat64 for every Float64, ``time`` included (it failed: "16 values requested, more
     than the FMU's 15")."""
-    from fmus.scenarios import SCENARIOS
+    from obsfmu.fmus.scenarios import SCENARIOS
     scenario = next(s for s in SCENARIOS.values() if model in {m for _, m, _ in s.components})
     unzipped = Unzipped.of("fmu", ensure_fmus(scenario, build_dir, fmi_version=3)[model], tmp_path)
     vrs, values = float64_variables(unzipped)

@@ -13,9 +13,9 @@ import textwrap
 
 import pytest
 
-from fmus.builder import PROJECT_ROOT, build_fmu
-from fmus.runtime.kinds.signals import source_definition
-from fmus.scenarios import ensure_fmus, get
+from obsfmu.fmus.builder import PROJECT_ROOT, build_fmu
+from obsfmu.fmus.runtime.kinds.signals import source_definition
+from obsfmu.fmus.scenarios import ensure_fmus, get
 
 #: appended to plants/signals.py of a copy of the project: that copy's sources output 1000 more
 VARIANT = """
@@ -46,10 +46,10 @@ def variants(tmp_path_factory):
     built = python("""
         import json, sys
         sys.path.insert(0, sys.argv[1])
-        import fmus
+        from obsfmu import fmus
         assert fmus.__file__.startswith(sys.argv[1]), fmus.__file__  # the copy, not this checkout
-        from fmus.builder import build_fmu
-        from fmus.runtime.kinds.signals import source_definition
+        from obsfmu.fmus.builder import build_fmu
+        from obsfmu.fmus.runtime.kinds.signals import source_definition
         print(json.dumps(str(build_fmu(source_definition("variant_source", offset=0.5), sys.argv[2]))))
     """, str(copy), str(root / "variant"))
     return str(original), built
@@ -113,7 +113,7 @@ def test_observers_of_two_kinds_one_after_the_other(build_dir):
 
 def test_user_modules_are_bundled_relocated_too(tmp_path):
     """A user's ``"module:function"`` module, importing a project module, runs from the FMU alone."""
-    from fmus.runtime.kinds.gpebo import generator_plant_definition
+    from obsfmu.fmus.runtime.kinds.gpebo import generator_plant_definition
 
     user = tmp_path / "usermodel.py"
     user.write_text("from plants.gpebo import sine\n\n\ndef doubled(y):\n    return 2.0 * sine(y)\n")

@@ -14,7 +14,7 @@ import sys
 import sysconfig
 from pathlib import Path
 
-from fmus.builder import PROJECT_ROOT
+from obsfmu.fmus.builder import PROJECT_ROOT
 
 
 def clean_clone(destination: Path) -> Path:

@@ -18,8 +18,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fmus.scenarios import ensure_fmus, get, run
-from fmus.standalone import RUNTIME, SYSTEM_LIBRARIES
+from obsfmu.fmus.scenarios import ensure_fmus, get, run
+from obsfmu.fmus.standalone import RUNTIME, SYSTEM_LIBRARIES
 from native_harness import read_csv, system_script
 from python_free_root import (alone_lines, enter_command, first_of_each_kind, make_root, pythons, read_only_command,
                               run_in_root, unzip)
@@ -173,7 +173,7 @@ def test_a_python_host_runs_a_standalone_fmu_on_its_own_interpreter(standalone_d
 
 
 def test_export_standalone_packs_fmus_that_carry_their_runtime(standalone_dir, tmp_path, capsys):
-    from fmus.cli import main as cli
+    from obsfmu.fmus.cli import main as cli
     assert cli.main(["export", "ship", "--format", "ssp", "--standalone", "--build-dir", str(standalone_dir),
                      "--out", str(tmp_path)]) == 0
     with zipfile.ZipFile(tmp_path / "ship.ssp") as package:

@@ -12,7 +12,7 @@ calls the slave refuses leave the instance in its state (docs/faults.md).
 
 import pytest
 
-from fmus.scenarios import ensure_fmus, get
+from obsfmu.fmus.scenarios import ensure_fmus, get
 from native_harness import Unzipped, parse_calls, run
 
 OK, DISCARD, ERROR = 0, 2, 3

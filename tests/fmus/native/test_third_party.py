@@ -137,7 +137,7 @@ GPEBO = ("gpebo_source", "gpebo_plant", "gpebo_observer")  #: FMUs that refuse a
 
 def gpebo_paths(fixture, request) -> tuple[float, float, dict]:
     """The GPEBO FMUs and their scenario's stop time and step (what their DefaultExperiment declares)."""
-    from fmus.scenarios import get
+    from obsfmu.fmus.scenarios import get
     scenario, fmus = get("discrete-gpebo"), request.getfixturevalue(fixture)
     return scenario.stop_time, scenario.step, {model: fmus[model][1] for model in GPEBO}
 
@@ -201,7 +201,7 @@ def test_fmusim_0_0_39_freeing_a_state_with_the_state_itself_no_longer_crashes(f
 def test_a_state_saved_by_fmusim_restores_the_run(fmusim_fixed, build_dir, tmp_path, version, scenario, model):
     """0 -> t1 saving the state, then t1 -> t2 from that state file = 0 -> t2 in one run, at every point
     (the LTI ship plant, and paper 001's nonlinear LTV plant with its RK4 sub-steps)."""
-    from fmus.scenarios import ensure_fmus, get
+    from obsfmu.fmus.scenarios import ensure_fmus, get
     path = ensure_fmus(get(scenario), build_dir, fmi_version=version)[model]
     step, half = 1e-3, POINTS // 2 * 1e-3
     state = tmp_path / "state.bin"
@@ -226,7 +226,7 @@ def test_fmusim_agrees_with_fmpy(fmusim, build_dir, tmp_path, version):
     """The ship plant alone (its input at its start value): fmusim and fmpy.simulate_fmu, point by point."""
     from fmpy import simulate_fmu
 
-    from fmus.scenarios import ensure_fmus, get
+    from obsfmu.fmus.scenarios import ensure_fmus, get
     path = ensure_fmus(get("ship"), build_dir, fmi_version=version)["ship_plant"]
     step = 1e-3
     completed, out = fmusim_run(fmusim, path, step, tmp_path)

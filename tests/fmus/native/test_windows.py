@@ -30,8 +30,8 @@ import numpy as np
 import pytest
 from fmpy import extract, read_model_description
 
-from fmus.native import LOADER, LOADER_FMI3, MINGW, HERE, fmi_headers, loader_library
-from fmus.scenarios import SCENARIOS, ensure_all, ensure_fmus, get, run
+from obsfmu.fmus.native import LOADER, LOADER_FMI3, MINGW, HERE, fmi_headers, loader_library
+from obsfmu.fmus.scenarios import SCENARIOS, ensure_all, ensure_fmus, get, run
 from native_harness import Unzipped, read_csv, scenario_script
 from test_third_party import fmucheck, run_tool, vendor_dir  # noqa: F401  (fixtures)
 from windows_harness import Wine, wine, windows_fmpy, windows_importer, windows_path
@@ -250,7 +250,7 @@ def test_a_damaged_windows_runtime_is_one_message_and_no_instance(wine_host, win
 def dcmotor_dual(mingw, tmp_path_factory):
     """The FMUs of examples/dcmotor.toml as the CLI builds them for both platforms (the issue's 'done when')."""
     out = tmp_path_factory.mktemp("dcmotor dual")
-    completed = subprocess.run([sys.executable, "-m", "fmus.cli", "build", "--config", str(ROOT / "examples" / "dcmotor.toml"),
+    completed = subprocess.run([sys.executable, "-m", "obsfmu", "build", "--config", str(ROOT / "examples" / "dcmotor.toml"),
                                 "--platform", DUAL, "--out", str(out)], capture_output=True, text=True, timeout=900,
                                cwd=ROOT)
     assert completed.returncode == 0, completed.stdout[-2000:] + completed.stderr[-2000:]
@@ -356,7 +356,7 @@ def test_offline_a_missing_windows_file_is_one_line_naming_it_and_how_to_provide
     environment = {**os.environ, "XDG_CACHE_HOME": str(tmp_path / "cache"), "OBSFMU_WHEELS": str(tmp_path / "wheels"),
                    "PIP_INDEX_URL": "http://127.0.0.1:9/simple"}
     (tmp_path / "wheels").mkdir()
-    completed = subprocess.run([sys.executable, "-m", "fmus.cli", "build", "--config",
+    completed = subprocess.run([sys.executable, "-m", "obsfmu", "build", "--config",
                                 str(ROOT / "examples" / "dcmotor.toml"), "--platform", "win64", "--out",
                                 str(tmp_path / "out")], capture_output=True, text=True, timeout=600, cwd=ROOT,
                                env=environment)
@@ -369,7 +369,7 @@ def test_offline_a_missing_windows_file_is_one_line_naming_it_and_how_to_provide
 
 
 def test_a_file_that_is_not_the_pinned_one_is_refused(tmp_path, monkeypatch):
-    from fmus.native import registry
+    from obsfmu.fmus.native import registry
     name = next(iter(registry.PINNED))
     (tmp_path / name).write_bytes(b"not the sdist")
     monkeypatch.setenv("OBSFMU_WHEELS", str(tmp_path))

@@ -19,7 +19,7 @@ import sys
 import zipfile
 from pathlib import Path
 
-from fmus.native import MINGW, fmi_headers
+from obsfmu.fmus.native import MINGW, fmi_headers
 
 HERE = Path(__file__).parent
 #: the Windows wheels of fmpy for Windows (pinned: what the tests measured)
@@ -75,7 +75,7 @@ def windows_importer(folder: Path) -> Path:
 def windows_fmpy(folder: Path) -> Path:
     """``python.exe`` of fmpy for Windows in ``folder``: the embeddable CPython of the FMUs' Python version and
     the Windows wheels of :data:`FMPY_WHEELS` unpacked into its ``Lib/site-packages`` (listed in its ``._pth``)."""
-    from fmus.native import registry, windows
+    from obsfmu.fmus.native import registry, windows
     home = Path(folder) / "python"
     shutil.copytree(windows.embeddable(), home)
     wheels = registry.cache_folder() / f"test-fmpy-win64-cp{sys.version_info.major}{sys.version_info.minor}"

@@ -15,10 +15,10 @@ from fmpy.fmi2 import FMU2Slave, fmi2LastSuccessfulTime
 from fmpy.validation import validate_fmu
 from scipy.linalg import expm
 
-from fmus.builder import build_fmu, is_current
-from fmus.scenarios.ship.reference import K
-from fmus.runtime.kinds.linear import plant_definition
-from observers.lti_model import StateSpace
+from obsfmu.fmus.builder import build_fmu, is_current
+from obsfmu.fmus.scenarios.ship.reference import K
+from obsfmu.fmus.runtime.kinds.linear import plant_definition
+from obsfmu.observers.lti_model import StateSpace
 
 
 def open_slave(path, name="instance"):
@@ -75,7 +75,7 @@ def test_fmu_runs_without_the_checkout(ship_fmus, tmp_path):
         import sys
         sys.path.append({site!r})          # packages only: no .pth files, so no editable obsfmu
         try:
-            import observers
+            from obsfmu import observers
         except ImportError:
             pass
         else:
@@ -221,7 +221,7 @@ def test_logging_after_a_master_run_does_not_crash_the_host(ship_fmus, capfd):
     """fmpy's logger proxy keeps one global Python logger; the master must not leave it dangling."""
     import gc
 
-    from fmus.master import Component, System, cosimulate
+    from obsfmu.fmus.master import Component, System, cosimulate
     cosimulate(System([Component("plant", ship_fmus["ship_plant"], {"u": 0.0})], []), 0.01, 1e-3)
     gc.collect()
     slave, _ = open_slave(ship_fmus["ship_observer"], "after")
@@ -258,7 +258,7 @@ def test_an_fmu_bundles_only_the_runtime_part_of_fmus(ship_fmus):
 def test_an_instance_context_ignores_floating_point_errors_and_leaves_the_callers_setting():
     """The slave runs its entry points in a context of its own where numpy ignores floating-point
     errors (numpy >= 2 keeps that setting per context); the caller's setting stays as it was."""
-    from fmus.runtime.slave.numerics import numerics_context
+    from obsfmu.fmus.runtime.slave.numerics import numerics_context
     old = np.seterr(all="raise")
     try:
         context = numerics_context()

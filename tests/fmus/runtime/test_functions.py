@@ -8,14 +8,14 @@ import math
 import numpy as np
 import pytest
 
-from fmus.runtime.callables import resolve
-from fmus.runtime.functions import compiled, expression_function
-from observers.checks import ParameterError
-from observers.expressions import ExpressionError
+from obsfmu.fmus.runtime.callables import resolve
+from obsfmu.fmus.runtime.functions import compiled, expression_function
+from obsfmu.observers.checks import ParameterError
+from obsfmu.observers.expressions import ExpressionError
 
 
 def test_a_matrix_of_time_equals_the_hand_written_function_bit_for_bit():
-    from plants.ltv import A_paper
+    from obsfmu.plants.ltv import A_paper
     A = resolve(expression_function([["2 - sin(t)", 1], ["-8 + cos(t)", 0]], [("t", 0)], (2, 2)), "A")
     for t in np.linspace(0.0, 20.0, 41):
         assert np.array_equal(A(t), A_paper(t))

@@ -15,9 +15,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from fmus.master import Component, Session, System
-from fmus.scenarios import get
-from observers.state import Leaves, within, within_bound
+from obsfmu.fmus.master import Component, Session, System
+from obsfmu.fmus.scenarios import get
+from obsfmu.observers.state import Leaves, within, within_bound
 
 BOUND = 1e100
 

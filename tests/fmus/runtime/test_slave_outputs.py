@@ -12,8 +12,8 @@ import pytest
 from pythonfmu import Fmi2Slave
 from pythonfmu.variables import Real
 
-from fmus.config import design_from_config
-from fmus.runtime.slave import BlockSlave, Refused
+from obsfmu.fmus.config import design_from_config
+from obsfmu.fmus.runtime.slave import BlockSlave, Refused
 
 
 @pytest.fixture()

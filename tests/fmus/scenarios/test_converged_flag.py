@@ -11,10 +11,10 @@ the same check find false claims, so the check can fail.
 import numpy as np
 import pytest
 
-from fmus.metrics import time_to_stay_below
-from fmus.scenarios import run
-from fmus.scenarios.discrete_gpebo import true_gammas
-from fmus.scenarios.uio_ftdrem import X0, true_x_tilde0
+from obsfmu.fmus.metrics import time_to_stay_below
+from obsfmu.fmus.scenarios import run
+from obsfmu.fmus.scenarios.discrete_gpebo import true_gammas
+from obsfmu.fmus.scenarios.uio_ftdrem import X0, true_x_tilde0
 
 
 def _vector(result, name):

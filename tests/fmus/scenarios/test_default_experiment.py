@@ -7,7 +7,7 @@ in its FMI 2.0 and FMI 3.0 modelDescription, so that importers run it without op
 import pytest
 from fmpy import read_model_description
 
-from fmus.scenarios import SCENARIOS
+from obsfmu.fmus.scenarios import SCENARIOS
 
 PAPER_001 = {"ltv_ls_source", "ltv_ls_plant", "ltv_ls_observer"}
 
@@ -40,7 +40,7 @@ def test_the_bounded_case_declares_its_own_run_not_the_paper_case(every_fmu):
 
 def test_a_design_built_alone_declares_its_own_run(tmp_path):
     """``obsfmu build --config``: 10 time constants of the slowest designed pole, a hundredth of the fastest."""
-    from fmus.cli.main import main
+    from obsfmu.fmus.cli.main import main
 
     design = tmp_path / "ship.toml"          # paper 002's design: t_settle 0.15 s (observer), 0.3 s (loop)
     design.write_text('name = "ship"\n[plant]\nA = [[0, 1], [-2, 3]]\nB = [[0], [1]]\nC = [[1, 0]]\n'

@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 from fmpy.validation import validate_fmu
 
-from fmus.cli import main as cli
-from fmus.master import SimulationError
-from fmus.scenarios import ensure_fmus, get, run
-from fmus.scenarios.discrete_gpebo import plant_residual
-from fmus.scenarios.discrete_gpebo import reference as ref
+from obsfmu.fmus.cli import main as cli
+from obsfmu.fmus.master import SimulationError
+from obsfmu.fmus.scenarios import ensure_fmus, get, run
+from obsfmu.fmus.scenarios.discrete_gpebo import plant_residual
+from obsfmu.fmus.scenarios.discrete_gpebo import reference as ref
 
 PAPER_STATE = dict(xi_b0=[1.0, 0.5], xi_t0=[0.5, -0.4], x0=[0.3, -0.2])   # the scenario's defaults
 SILENCE = [("source", "amplitude[1]", 0.0), ("source", "amplitude[2]", 0.0)]

@@ -11,15 +11,15 @@ from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 from fmpy.validation import validate_fmu
 
-from fmus.cli import main as cli
-from fmus.runtime.kinds.ltv import ltv_observer_definition, ltv_plant_definition
-from fmus.master import SimulationError
-from fmus.metrics import time_to_stay_below
-from fmus.result import Result
-from fmus.scenarios import ensure_fmus, get, run
-from fmus.scenarios.ltv_common import errors, load_reference
-from observers.checks import ParameterError
-from fmus.scenarios.ltv_common import reference as ref
+from obsfmu.fmus.cli import main as cli
+from obsfmu.fmus.runtime.kinds.ltv import ltv_observer_definition, ltv_plant_definition
+from obsfmu.fmus.master import SimulationError
+from obsfmu.fmus.metrics import time_to_stay_below
+from obsfmu.fmus.result import Result
+from obsfmu.fmus.scenarios import ensure_fmus, get, run
+from obsfmu.fmus.scenarios.ltv_common import errors, load_reference
+from obsfmu.observers.checks import ParameterError
+from obsfmu.fmus.scenarios.ltv_common import reference as ref
 
 TOLERANCE = 1e-3
 

@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from fmus.cli import main as cli
-from fmus.result import Result
-from fmus.scenarios import ensure_fmus, get, run
-from fmus.scenarios.ship import paper_table
+from obsfmu.fmus.cli import main as cli
+from obsfmu.fmus.result import Result
+from obsfmu.fmus.scenarios import ensure_fmus, get, run
+from obsfmu.fmus.scenarios.ship import paper_table
 
-from fmus.scenarios.ship.reference import exact
+from obsfmu.fmus.scenarios.ship.reference import exact
 
 GRID = np.round(np.arange(101) * 0.01, 2)
 
@@ -38,8 +38,8 @@ def test_transcribed_table_matches_the_exact_solution():
 def test_the_system_file_holds_the_papers_numbers():
     """The scenario's system file (its matrices, the gains designed from its poles, x(0), x_hat(0), r)
     is the loop of the independent reference, exactly; so is its composite matrix Ae (eq. (12))."""
-    from fmus.scenarios import ship
-    from fmus.scenarios.ship import reference
+    from obsfmu.fmus.scenarios import ship
+    from obsfmu.fmus.scenarios.ship import reference
 
     loop = ship.loop()
     assert [np.array_equal(a, b) for a, b in zip(loop.plant, loop.observer)] == [True] * 4
@@ -124,10 +124,10 @@ def test_summary_settling_times(build_dir):
 
 def test_nomoto_observer_from_toml_decays_as_its_poles_say(tmp_path):
     """A different plant (3rd-order Nomoto model) from a TOML file, through the CLI and the master."""
-    from fmus.config import design_from_config, load_config
-    from fmus.runtime.kinds.signals import source_definition
-    from fmus.builder import build_fmu
-    from fmus.master import Component, Connection, System, cosimulate
+    from obsfmu.fmus.config import design_from_config, load_config
+    from obsfmu.fmus.runtime.kinds.signals import source_definition
+    from obsfmu.fmus.builder import build_fmu
+    from obsfmu.fmus.master import Component, Connection, System, cosimulate
 
     config = "examples/nomoto3.toml"
     assert cli.main(["build", "--config", config, "--out", str(tmp_path)]) == 0

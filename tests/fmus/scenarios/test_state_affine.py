@@ -13,15 +13,15 @@ from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import FMU2Slave
 from fmpy.validation import validate_fmu
 
-from fmus.cli import main as cli
-from fmus.metrics import time_to_stay_below
-from fmus.result import Result
-from fmus.scenarios import ensure_fmus, get, run
-from fmus.scenarios import state_affine_chemostat as chemostat_scenario
-from fmus.scenarios import state_affine_common as common
-from fmus.scenarios import state_affine_pendulum as pendulum_scenario
-from fmus.scenarios.state_affine_common import reference as ref
-from fmus.system.load import load_system
+from obsfmu.fmus.cli import main as cli
+from obsfmu.fmus.metrics import time_to_stay_below
+from obsfmu.fmus.result import Result
+from obsfmu.fmus.scenarios import ensure_fmus, get, run
+from obsfmu.fmus.scenarios import state_affine_chemostat as chemostat_scenario
+from obsfmu.fmus.scenarios import state_affine_common as common
+from obsfmu.fmus.scenarios import state_affine_pendulum as pendulum_scenario
+from obsfmu.fmus.scenarios.state_affine_common import reference as ref
+from obsfmu.fmus.system.load import load_system
 
 TOLERANCE = 1e-4     # acceptance: theta_hat and x_hat to 1e-4
 

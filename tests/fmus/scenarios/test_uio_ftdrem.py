@@ -13,10 +13,10 @@ import pytest
 from fmpy import read_model_description
 from fmpy.validation import validate_fmu
 
-from fmus.master import SimulationError
-from fmus.scenarios import ensure_fmus, get, parse_overrides, run
-from fmus.scenarios.uio_ftdrem import REFERENCE, deviation_from_reference, errors, is_default, summarize
-from observers.uio.settling import SETTLED, TIMED_OUT
+from obsfmu.fmus.master import SimulationError
+from obsfmu.fmus.scenarios import ensure_fmus, get, parse_overrides, run
+from obsfmu.fmus.scenarios.uio_ftdrem import REFERENCE, deviation_from_reference, errors, is_default, summarize
+from obsfmu.observers.uio.settling import SETTLED, TIMED_OUT
 
 NAME = "uio-ftdrem"
 
@@ -96,8 +96,8 @@ def test_reference_module_reproduces_the_whole_stored_reference_and_finds_the_st
     8.6e-6 at |f_hat| = 1.5e5 (t = 0.1 s), so ``f_hat`` gets ``1e-6 (1 + |stored|)`` before
     stage 4 has been identified and 1e-8 after it (t >= 8 s).
     """
-    from fmus.result import Result
-    from fmus.scenarios.uio_ftdrem import reference
+    from obsfmu.fmus.result import Result
+    from obsfmu.fmus.scenarios.uio_ftdrem import reference
 
     stored = Result.from_csv(REFERENCE)
     with warnings.catch_warnings():
@@ -121,7 +121,7 @@ def test_reference_module_reproduces_the_whole_stored_reference_and_finds_the_st
 def test_reference_right_hand_sides_agree():
     """The reference computes one state on Python floats and stacks (its Jacobian) with numpy: the
     same equations, in every mode (which stages adapt, which switched, stage 4 on or off)."""
-    from fmus.scenarios.uio_ftdrem import reference
+    from obsfmu.fmus.scenarios.uio_ftdrem import reference
 
     model = reference.Reference(**reference.PAPER, **reference.TUNING)
     rng = np.random.default_rng(3)

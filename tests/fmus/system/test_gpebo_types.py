@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fmus.system.load import parse_system
-from observers.checks import ParameterError
+from obsfmu.fmus.system.load import parse_system
+from obsfmu.observers.checks import ParameterError
 
 ROOT = Path(__file__).resolve().parents[3]
 
@@ -145,7 +145,7 @@ def test_the_check_runs_the_planned_number_of_samples():
 def test_the_cli_refuses_with_exit_2(tmp_path):
     path = tmp_path / "bad.toml"
     path.write_text(HEAD + SOURCE + PLANT + OBSERVER.replace("[-0.5, 0.5]", "[0, 0.5]"))
-    done = subprocess.run([sys.executable, "-m", "fmus.cli", "run", "--config", str(path)], cwd=ROOT,
+    done = subprocess.run([sys.executable, "-m", "obsfmu", "run", "--config", str(path)], cwd=ROOT,
                           capture_output=True, text=True, timeout=300)
     assert done.returncode == 2
     assert "components.observer.gamma_hat0: gamma_beta (entry 1) must be nonzero" in done.stderr
@@ -173,8 +173,8 @@ def test_a_structure_with_dependent_terms_is_refused_whatever_the_input():
 
 
 def test_the_structural_rank_of_the_examples_is_full():
-    from fmus.system.gpebo_types import block_of, structural_rank
-    from fmus.system.load import load_system
+    from obsfmu.fmus.system.gpebo_types import block_of, structural_rank
+    from obsfmu.fmus.system.load import load_system
     for path in (ROOT / "fmus/scenarios/discrete_gpebo/system.toml", ROOT / "examples/gpebo_shift3.toml"):
         observer = [d for d in load_system(path).definitions() if d.kind == "gpebo-observer"][0]
         assert structural_rank(block_of(observer)) == (5, 5)

@@ -12,8 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fmus.system.load import parse_system
-from observers.checks import ParameterError
+from obsfmu.fmus.system.load import parse_system
+from obsfmu.observers.checks import ParameterError
 
 ROOT = Path(__file__).resolve().parents[3]
 
@@ -152,7 +152,7 @@ def test_a_good_file_builds_expression_functions_and_the_estimators_parameters()
 
 def test_the_cli_refuses_a_bad_observer_in_one_line_with_exit_2(tmp_path):
     (tmp_path / "bad.toml").write_text(BAD["A0 Jordan block"][0])
-    done = subprocess.run([sys.executable, "-m", "fmus.cli", "run", "--config", "bad.toml", "--build-dir", "fmus"],
+    done = subprocess.run([sys.executable, "-m", "obsfmu", "run", "--config", "bad.toml", "--build-dir", "fmus"],
                           cwd=tmp_path, env={**os.environ, "PYTHONPATH": str(ROOT)}, capture_output=True, text=True,
                           timeout=600)
     assert done.returncode == 2 and "Traceback" not in done.stderr, done.stderr
@@ -163,8 +163,8 @@ def test_the_cli_refuses_a_bad_observer_in_one_line_with_exit_2(tmp_path):
 def test_a_varying_A_and_an_f_of_y_and_t_from_expressions_converge():
     """Block level (the kinds' factories, no FMU): ``A(t)``, ``L(t)`` varying with a constant ``A0``, ``f(y, t)``,
     least squares; ``x(0)`` and ``k`` to 1e-3 within 15 s, the flag never early."""
-    from fmus.runtime.kinds import create_block
-    from observers.block import Segment
+    from obsfmu.fmus.runtime.kinds import create_block
+    from obsfmu.observers.block import Segment
     text = GOOD.replace("A = [[0, 1], [0, 0]]", 'A = [[0, 1], ["-0.5 * sin(t)", 0]]').replace(
         'f = "y**3"', 'f = "y**3 * (1 + 0.5 * cos(t))"').replace("L = [0, 9]", 'L = [0, "9 - 0.5 * sin(t)"]')
     text = text.replace('kind = "sine"', 'kind = "multisine"\namplitudes = [2, 1]\nfrequencies_hz = [0.1, 0.37]')

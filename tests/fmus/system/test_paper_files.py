@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from fmus.scenarios import SCENARIOS
+from obsfmu.fmus.scenarios import SCENARIOS
 
 ROOT = Path(__file__).resolve().parents[3]
 FILES = sorted(name for name, scenario in SCENARIOS.items() if scenario.system_file is not None)
@@ -23,7 +23,7 @@ FILES = sorted(name for name, scenario in SCENARIOS.items() if scenario.system_f
 
 def obsfmu(*args, cwd: Path | None = None) -> subprocess.CompletedProcess:
     environment = {**os.environ, "PYTHONPATH": str(ROOT)}
-    return subprocess.run([sys.executable, "-m", "fmus.cli", *map(str, args)], cwd=cwd, env=environment,
+    return subprocess.run([sys.executable, "-m", "obsfmu", *map(str, args)], cwd=cwd, env=environment,
                           capture_output=True, text=True, timeout=900)
 
 
@@ -71,14 +71,14 @@ def test_every_paper_scenario_is_a_system_file():
 def test_run_reads_the_file_from_a_pipe_and_sweep_refuses_one(scenario_csv, build_dir, tmp_path):
     """``obsfmu run --config <(obsfmu show ship)`` from bash (a /dev/fd/N pipe, read once) writes the
     scenario's CSV; ``obsfmu sweep`` reads its file again in each worker: a pipe is one line naming --config."""
-    show = f"{sys.executable} -m fmus.cli show ship"
+    show = f"{sys.executable} -m obsfmu show ship"
     environment = {**os.environ, "PYTHONPATH": str(ROOT)}
-    run = subprocess.run(["bash", "-c", f'{sys.executable} -m fmus.cli run --config <({show}) --csv pipe.csv '
+    run = subprocess.run(["bash", "-c", f'{sys.executable} -m obsfmu run --config <({show}) --csv pipe.csv '
                           f'--build-dir "{build_dir}"'], cwd=tmp_path, env=environment, capture_output=True,
                          text=True, timeout=900)
     assert run.returncode == 0, run.stderr
     assert (tmp_path / "pipe.csv").read_bytes() == scenario_csv("ship")
-    sweep = subprocess.run(["bash", "-c", f"{sys.executable} -m fmus.cli sweep --config <({show}) --vary "
+    sweep = subprocess.run(["bash", "-c", f"{sys.executable} -m obsfmu sweep --config <({show}) --vary "
                             f"'plant.x0[1]=0,0.1' --out sweep --build-dir \"{build_dir}\""], cwd=tmp_path,
                            env=environment, capture_output=True, text=True, timeout=900)
     assert sweep.returncode == 2

@@ -12,9 +12,9 @@ import re
 import numpy as np
 import pytest
 
-from fmus.cli import main as cli
-from fmus.system.load import parse_system
-from observers.checks import ParameterError
+from obsfmu.fmus.cli import main as cli
+from obsfmu.fmus.system.load import parse_system
+from obsfmu.observers.checks import ParameterError
 
 STATEMENT2 = {
     "Lambda": "[[0, 1], [0, 0]]",
@@ -159,9 +159,9 @@ def test_the_paper_files_write_the_papers_functions_bit_for_bit(example):
     CSVs stay bit for bit): 500 random points per function."""
     from pathlib import Path
 
-    import plants.state_affine as paper
-    from fmus.runtime.callables import resolve
-    from fmus.system.load import load_system
+    import obsfmu.plants.state_affine as paper
+    from obsfmu.fmus.runtime.callables import resolve
+    from obsfmu.fmus.system.load import load_system
 
     path = Path(__file__).resolve().parents[3] / "fmus" / "scenarios" / f"state_affine_{example}" / "system.toml"
     options = load_system(path).components["observer"].definitions[0].options

@@ -85,7 +85,7 @@ tolerance = 1e-3
 
 def obsfmu(*args, cwd: Path) -> subprocess.CompletedProcess:
     environment = {**os.environ, "PYTHONPATH": str(ROOT)}
-    return subprocess.run([sys.executable, "-m", "fmus.cli", *map(str, args)], cwd=cwd, env=environment,
+    return subprocess.run([sys.executable, "-m", "obsfmu", *map(str, args)], cwd=cwd, env=environment,
                           capture_output=True, text=True, timeout=600)
 
 
@@ -151,7 +151,7 @@ def test_noisy_measurements_run_plot_export_and_report(tmp_path):
     assert reported.returncode == 0, reported.stderr
     page = (tmp_path / "results" / "report.html").read_text()
     assert 'id="dcmotor"' in page and (tmp_path / "results" / "dcmotor.csv").exists()
-    from fmus import report                     # a plain 'obsfmu report' there keeps the file's entry
+    from obsfmu.fmus import report                     # a plain 'obsfmu report' there keeps the file's entry
     assert report.other_runs(tmp_path / "results") == ["dcmotor"]
     assert 'id="dcmotor"' in report.write_report(tmp_path / "results", tmp_path / "build").read_text()
 
@@ -226,14 +226,14 @@ def test_a_bad_file_is_one_line_exit_2_and_builds_nothing(tmp_path, case):
 
 
 def test_values_stand_for_an_unconnected_input():
-    from fmus.system.load import parse_system
+    from obsfmu.fmus.system.load import parse_system
     text = _bad(GOOD, '    "reference.y -> controller.r",\n', "") + '\n[values]\n"controller.r" = 0.25\n'
     scenario = parse_system(text, "f.toml").scenario()
     assert dict((i, s) for i, _, s in scenario.components)["controller"] == {"r": 0.25}
 
 
 def test_the_field_reference_is_the_generated_one():
-    from fmus.system import field_reference
+    from obsfmu.fmus.system import field_reference
     checked_in = (ROOT / "docs" / "system-file-reference.md").read_text()
     assert checked_in == field_reference(), "regenerate: obsfmu show --fields > docs/system-file-reference.md"
     for kind in ("lti", "expression", "luenberger", "state-feedback", "chirp", "csv", "noise", "added-noise"):
@@ -296,7 +296,7 @@ def test_sweep_varies_a_parameter_of_a_component(tmp_path):
 
 
 def test_show_prints_the_reference_and_a_checked_file(tmp_path):
-    from fmus.system import field_reference
+    from obsfmu.fmus.system import field_reference
     done = obsfmu("show", "--fields", cwd=tmp_path)
     assert done.returncode == 0 and done.stdout == field_reference()
     (tmp_path / "dcmotor.toml").write_text(motor_file())
@@ -326,7 +326,7 @@ def test_a_system_file_read_from_a_pipe(tmp_path):
     fifo = tmp_path / "system"
     os.mkfifo(fifo)
     environment = {**os.environ, "PYTHONPATH": str(ROOT)}
-    process = subprocess.Popen([sys.executable, "-m", "fmus.cli", "run", "--config", str(fifo), "--step", "1e-3",
+    process = subprocess.Popen([sys.executable, "-m", "obsfmu", "run", "--config", str(fifo), "--step", "1e-3",
                                 "--build-dir", "build"], cwd=tmp_path, env=environment, stdout=subprocess.PIPE,
                                stderr=subprocess.PIPE, text=True)
     fifo.write_text(motor_file())
@@ -338,8 +338,8 @@ def test_a_system_file_read_from_a_pipe(tmp_path):
 def test_the_figure_gives_every_compared_quantity_its_own_colour(monkeypatch, tmp_path):
     """Two more [[report.compare]] tables of one entry each: every error curve its own colour."""
     import fmus.plotting
-    from fmus.result import Result
-    from fmus.system import load_system
+    from obsfmu.fmus.result import Result
+    from obsfmu.fmus.system import load_system
     path = tmp_path / "two.toml"
     path.write_text(motor_file() + '\n[[report.compare]]\nestimate = "observer.x_hat[1]"\ntruth = "plant.x[1]"\n'
                     '\n[[report.compare]]\nestimate = "observer.x_hat[3]"\ntruth = "plant.x[3]"\n')
@@ -355,8 +355,8 @@ def test_the_figure_gives_every_compared_quantity_its_own_colour(monkeypatch, tm
 def test_a_file_step_long_against_its_fastest_dynamics_warns_naming_them(capsys):
     """The pendulum example at 2e-2 s instead of its 1e-3 s (observer poles down to -30 1/s): one line naming the
     observer's poles, the expected error and the step that keeps it small; the file's own step says nothing."""
-    from fmus.scenarios import check_step
-    from fmus.system import load_system
+    from obsfmu.fmus.scenarios import check_step
+    from obsfmu.fmus.system import load_system
     scenario = load_system(ROOT / "examples" / "pendulum.toml").scenario()
     rate, what = scenario.fastest
     assert what == "components.observer.eig(A - N C)" and rate == pytest.approx(30.0)

@@ -13,10 +13,10 @@ from pathlib import Path
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from fmus.system.kinds import component_type
-from fmus.system.load import parse_system
-from fmus.system.schema import TYPES
-from observers.checks import ParameterError
+from obsfmu.fmus.system.kinds import component_type
+from obsfmu.fmus.system.load import parse_system
+from obsfmu.fmus.system.schema import TYPES
+from obsfmu.observers.checks import ParameterError
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from test_system_file import motor_file  # noqa: E402

@@ -12,8 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fmus.system.load import parse_system
-from observers.checks import ParameterError
+from obsfmu.fmus.system.load import parse_system
+from obsfmu.observers.checks import ParameterError
 
 ROOT = Path(__file__).resolve().parents[3]
 PAPER = (ROOT / "fmus" / "scenarios" / "uio_ftdrem" / "system.toml").read_text()
@@ -114,7 +114,7 @@ def test_each_assumption_is_refused_naming_the_field(case):
 
 def test_the_cli_refuses_in_one_line_with_exit_2_and_builds_nothing(tmp_path):
     (tmp_path / "bad.toml").write_text(REFUSED["unstable zero"][0])
-    done = subprocess.run([sys.executable, "-m", "fmus.cli", "build", "--config", "bad.toml", "--out", "fmus"],
+    done = subprocess.run([sys.executable, "-m", "obsfmu", "build", "--config", "bad.toml", "--out", "fmus"],
                           cwd=tmp_path, env={**os.environ, "PYTHONPATH": str(ROOT)}, capture_output=True, text=True,
                           timeout=300)
     assert done.returncode == 2, (done.stdout, done.stderr)
@@ -139,8 +139,8 @@ def test_the_observer_is_designed_from_the_plant_and_the_build_notes_say_so():
 def test_the_paper_file_makes_the_definitions_the_python_scenario_made():
     """The FMU parameters of the file equal those of the kinds' definition functions with the paper's values
     (what made the scenario's CSV bit for bit the same as before it was a file)."""
-    from fmus.runtime.kinds.uio import ltv_plant_definition, uio_observer_definition
-    from observers.uio import uio_gain
+    from obsfmu.fmus.runtime.kinds.uio import ltv_plant_definition, uio_observer_definition
+    from obsfmu.observers.uio import uio_gain
     A, B, C = [[0.0, 1.0], [-2.0, 0.0]], [0.0, 1.0], [2.0, 0.0]
     expected = {"plant": ltv_plant_definition("p", A, B, C, np.eye(2), np.zeros((2, 2)), [0.0, -1.0], [-1.0, 1.0],
                                               [5.0], [1.0], [0.0]),

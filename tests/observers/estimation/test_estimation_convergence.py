@@ -11,7 +11,7 @@ from scipy.integrate import quad
 from scipy.linalg import expm
 from scipy.optimize import brentq
 
-from observers.estimation import (
+from obsfmu.observers.estimation import (
     DREM,
     DelayExtension,
     FilterBankExtension,

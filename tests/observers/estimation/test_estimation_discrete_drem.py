@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from observers.checks import ParameterError, SignalError
-from observers.estimation import DelayExtension, DiscreteDREM
+from obsfmu.observers.checks import ParameterError, SignalError
+from obsfmu.observers.estimation import DelayExtension, DiscreteDREM
 
 
 def run(estimator, theta, regressors):

@@ -3,7 +3,7 @@
 import math
 
 import numpy as np
-from observers.estimation import LeastSquaresForgetting
+from obsfmu.observers.estimation import LeastSquaresForgetting
 
 THETA = np.array([1.0, 2.0, -1.0])
 DT = 1e-3

@@ -5,8 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from observers.checks import ParameterError, SignalError
-from observers.estimation import (
+from obsfmu.observers.checks import ParameterError, SignalError
+from obsfmu.observers.estimation import (
     DREM,
     DelayExtension,
     DiscreteDREM,

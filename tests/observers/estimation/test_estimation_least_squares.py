@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from observers.estimation import LeastSquaresForgetting
+from obsfmu.observers.estimation import LeastSquaresForgetting
 
 # paper 001's estimator gains
 GAMMA, BETA, f0, M = 1000.0, 1.0, 0.1, 1e12  # F(0) = I / f0

@@ -7,8 +7,8 @@ import pytest
 from scipy.linalg import expm
 from scipy.signal import lsim
 
-from observers.checks import SignalError
-from observers.estimation import (
+from obsfmu.observers.checks import SignalError
+from obsfmu.observers.estimation import (
     DelayExtension,
     FilterBankExtension,
     KreisselmeierExtension,

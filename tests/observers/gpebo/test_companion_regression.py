@@ -3,12 +3,12 @@
 import numpy as np
 import pytest
 
-from observers.block import Segment
-from observers.checks import ParameterError
-from observers.gpebo import GeneratorModel, GpeboObserver
-from observers.gpebo.companion import CompanionRegression
-from observers.gpebo.regression import ShiftRegression, regression_for
-from plants.gpebo import GeneratorPlant
+from obsfmu.observers.block import Segment
+from obsfmu.observers.checks import ParameterError
+from obsfmu.observers.gpebo import GeneratorModel, GpeboObserver
+from obsfmu.observers.gpebo.companion import CompanionRegression
+from obsfmu.observers.gpebo.regression import ShiftRegression, regression_for
+from obsfmu.plants.gpebo import GeneratorPlant
 
 TANH2 = lambda y: np.array([np.tanh(y), 0.0])      # noqa: E731  (f of the n = 2 structures)
 EXAMPLE_STRUCTURE = dict(n=2, h_beta=[1.0, 0.0], H_theta=[[1.0, 0.0], [0.0, 0.0]], H_delta=None, f=TANH2)

@@ -7,11 +7,11 @@ without importing the project.  Numbers in comments were measured with the defau
 import numpy as np
 import pytest
 
-from observers.block import Segment
-from observers.checks import ParameterError, SignalError
-from observers.gpebo import ExampleRegression, GeneratorModel, GpeboFilters, GpeboObserver, generator_matrix
-from plants.gpebo import EXAMPLE, GeneratorPlant, example_model
-from fmus.scenarios.discrete_gpebo import reference as ref
+from obsfmu.observers.block import Segment
+from obsfmu.observers.checks import ParameterError, SignalError
+from obsfmu.observers.gpebo import ExampleRegression, GeneratorModel, GpeboFilters, GpeboObserver, generator_matrix
+from obsfmu.plants.gpebo import EXAMPLE, GeneratorPlant, example_model
+from obsfmu.fmus.scenarios.discrete_gpebo import reference as ref
 
 SINES = ref.INPUTS["sines"]
 

@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
-from observers.block import Segment
-from observers.gpebo import GeneratorModel, GpeboObserver
-from observers.gpebo.regression import ExampleRegression, ShiftRegression, regression_for
-from plants.gpebo import EXAMPLE, GeneratorPlant, example_model
+from obsfmu.observers.block import Segment
+from obsfmu.observers.gpebo import GeneratorModel, GpeboObserver
+from obsfmu.observers.gpebo.regression import ExampleRegression, ShiftRegression, regression_for
+from obsfmu.plants.gpebo import EXAMPLE, GeneratorPlant, example_model
 
 
 def record(model, gammas, xi0, x0, samples=80, noise=0.0, seed=0):

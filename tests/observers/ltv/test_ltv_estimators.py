@@ -11,11 +11,11 @@ import math
 import numpy as np
 import pytest
 
-from observers.block import Segment
-from observers.checks import ParameterError
-from observers.ltv import LTVAdaptiveObserver
-from observers.ltv.estimators import ESTIMATORS
-from plants.ltv import OutputNonlinearLTVPlant
+from obsfmu.observers.block import Segment
+from obsfmu.observers.checks import ParameterError
+from obsfmu.observers.ltv import LTVAdaptiveObserver
+from obsfmu.observers.ltv.estimators import ESTIMATORS
+from obsfmu.plants.ltv import OutputNonlinearLTVPlant
 
 C = [1.0, 0.0]
 K, B, M, X0 = [-0.6, -4.0], [0.0, 1.0], [0.0, -0.5], [0.5, 0.3]

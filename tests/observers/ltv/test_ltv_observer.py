@@ -10,13 +10,13 @@ import math
 import numpy as np
 import pytest
 
-from observers.block import Segment
-from observers.checks import ParameterError, SignalError
-from observers.ltv import LTVAdaptiveObserver
-from observers.ltv.stepping import SUBSTEP_POINTS, IntegralSamples, PolynomialInputs, resolved_output
-from plants.ltv import A_paper, L_paper, OutputNonlinearLTVPlant, f_sin
-from plants.signals import SampledNoise
-from fmus.scenarios.ltv_common import reference as ref
+from obsfmu.observers.block import Segment
+from obsfmu.observers.checks import ParameterError, SignalError
+from obsfmu.observers.ltv import LTVAdaptiveObserver
+from obsfmu.observers.ltv.stepping import SUBSTEP_POINTS, IntegralSamples, PolynomialInputs, resolved_output
+from obsfmu.plants.ltv import A_paper, L_paper, OutputNonlinearLTVPlant, f_sin
+from obsfmu.plants.signals import SampledNoise
+from obsfmu.fmus.scenarios.ltv_common import reference as ref
 
 C = [1.0, 0.0]
 

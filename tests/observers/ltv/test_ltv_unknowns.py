@@ -5,10 +5,10 @@ import math
 import numpy as np
 import pytest
 
-from observers.block import Segment
-from observers.checks import ParameterError
-from observers.ltv import LTVAdaptiveObserver
-from plants.ltv import A_paper, L_paper, OutputNonlinearLTVPlant, f_sin
+from obsfmu.observers.block import Segment
+from obsfmu.observers.checks import ParameterError
+from obsfmu.observers.ltv import LTVAdaptiveObserver
+from obsfmu.plants.ltv import A_paper, L_paper, OutputNonlinearLTVPlant, f_sin
 
 C = [1.0, 0.0]
 CASE = {"k": [-3.0, 1.0], "b": [0.5, -1.0], "m": [-2.0, 3.0], "x0": [2.0, -1.0]}   # scenario ltv-ls-bounded
@@ -74,7 +74,7 @@ def test_an_unobservable_pair_is_refused_naming_C():
 
 
 def test_the_kind_takes_the_unknowns_as_an_option_and_the_known_values_as_parameters():
-    from fmus.runtime.kinds.ltv import ltv_observer_definition
+    from obsfmu.fmus.runtime.kinds.ltv import ltv_observer_definition
     definition = ltv_observer_definition("o", A_paper, C, L_paper, f_sin, unknowns=("k", "m"),
                                          known={"b": CASE["b"]})
     names = [p.name for p in definition.parameters]

@@ -8,12 +8,12 @@ as the co-simulation master does with linear coupling.
 import numpy as np
 import pytest
 
-from observers.block import Segment
-from observers.checks import ParameterError, SignalError
-from observers.modal import observer_gain
-from observers.state_affine import StateAffineModel, StateAffineObserver
-from plants import state_affine as ex
-from fmus.scenarios.state_affine_common import reference as ref
+from obsfmu.observers.block import Segment
+from obsfmu.observers.checks import ParameterError, SignalError
+from obsfmu.observers.modal import observer_gain
+from obsfmu.observers.state_affine import StateAffineModel, StateAffineObserver
+from obsfmu.plants import state_affine as ex
+from obsfmu.fmus.scenarios.state_affine_common import reference as ref
 
 
 def pendulum_model(**changes):

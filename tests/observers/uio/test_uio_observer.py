@@ -11,15 +11,15 @@ import numpy as np
 import pytest
 from scipy.linalg import expm as scipy_expm
 
-from observers.block import Segment
-from observers.checks import ParameterError, SignalError
-from observers.uio import (GeneratorFlow, UIODesign, UIOFiniteTimeObserver, UIOSettings, check_generator,
+from obsfmu.observers.block import Segment
+from obsfmu.observers.checks import ParameterError, SignalError
+from obsfmu.observers.uio import (GeneratorFlow, UIODesign, UIOFiniteTimeObserver, UIOSettings, check_generator,
                            check_relative_degree, uio_gain)
-from observers.uio.harmonic import undo_filter
-from observers.uio.regressions import RegressionSignals, frequencies_from_annihilator
-from observers.uio.settling import SETTLED, TIMED_OUT, SettlingDetector
-from observers.uio.signals import SignalModel
-from plants.uio import DisturbedLTVPlant
+from obsfmu.observers.uio.harmonic import undo_filter
+from obsfmu.observers.uio.regressions import RegressionSignals, frequencies_from_annihilator
+from obsfmu.observers.uio.settling import SETTLED, TIMED_OUT, SettlingDetector
+from obsfmu.observers.uio.signals import SignalModel
+from obsfmu.plants.uio import DisturbedLTVPlant
 
 H_STEP = 1e-3
 A = np.array([[0.0, 1.0], [-2.0, 0.0]])
@@ -404,7 +404,7 @@ def test_plant_with_time_varying_parameters_matches_a_radau_solution():
 
 
 def test_plant_measurement_noise_is_added_to_y_only():
-    from plants.signals import SampledNoise
+    from obsfmu.plants.signals import SampledNoise
 
     plant = paper_plant(noise=SampledNoise(1e-3, 1e-3, 7))
     out = plant.outputs(0.5, {})

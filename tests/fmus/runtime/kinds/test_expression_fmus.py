@@ -10,15 +10,15 @@ import pytest
 from fmpy import read_model_description
 from scipy.integrate import solve_ivp
 
-from fmus.master import Component, Connection, System, cosimulate
-from fmus.runtime.kinds.expression import expression_plant_definition
-from fmus.runtime.kinds.linear import plant_definition
-from fmus.runtime.kinds.sources import sine_source_definition
+from obsfmu.fmus.master import Component, Connection, System, cosimulate
+from obsfmu.fmus.runtime.kinds.expression import expression_plant_definition
+from obsfmu.fmus.runtime.kinds.linear import plant_definition
+from obsfmu.fmus.runtime.kinds.sources import sine_source_definition
 from faults_support import DISCARD, OK, Probe
 from kinds_support import build_all, simulate, started
-from observers.checks import ParameterError
-from observers.expressions import ExpressionError
-from observers.lti_model import StateSpace
+from obsfmu.observers.checks import ParameterError
+from obsfmu.observers.expressions import ExpressionError
+from obsfmu.observers.lti_model import StateSpace
 
 G, L, C = 9.81, 0.5, 0.2
 DISCRETE_A = [[0.9, 0.1], [0.0, 0.8]]

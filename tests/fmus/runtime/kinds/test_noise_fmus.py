@@ -10,12 +10,12 @@ import numpy as np
 import pytest
 from fmpy import read_model_description
 
-from fmus.master import Component, Connection, System, cosimulate
-from fmus.runtime.kinds.noise import added_noise_definition, noise_source_definition
-from fmus.runtime.kinds.sources import sine_source_definition
+from obsfmu.fmus.master import Component, Connection, System, cosimulate
+from obsfmu.fmus.runtime.kinds.noise import added_noise_definition, noise_source_definition
+from obsfmu.fmus.runtime.kinds.sources import sine_source_definition
 from kinds_support import build_all, simulate, started
-from observers.checks import ParameterError
-from plants.noise import Noise
+from obsfmu.observers.checks import ParameterError
+from obsfmu.plants.noise import Noise
 
 DT, STD, SEED = 0.01, 0.3, 11
 

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 from fmpy import read_model_description
 
-from fmus.runtime.kinds import sources as kinds
+from obsfmu.fmus.runtime.kinds import sources as kinds
 from kinds_support import build_all, simulate, started
-from observers.checks import ParameterError
-from plants.sources import PRBS
+from obsfmu.observers.checks import ParameterError
+from obsfmu.plants.sources import PRBS
 
 STOP, STEP = 2.0, 0.01
 
