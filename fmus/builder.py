@@ -31,7 +31,7 @@ from xml.dom.minidom import parseString
 from xml.etree.ElementTree import tostring
 
 from . import fmi3, native
-from .bundle import package_init, relocate
+from .bundle import PROJECT, package_init, relocate
 from .cli.stopping import signals_held
 from .output import file_mode
 from .runtime.definition import FmuDefinition, valid_identifier
@@ -70,7 +70,7 @@ def _extra_files(extra_modules) -> list[tuple[str, Path]]:
         name = module.stem if module.suffix == ".py" else module.name
         if not (module.is_dir() or (module.suffix == ".py" and module.is_file())):
             raise ValueError(f"extra_modules: {module} is neither a .py file nor a package directory")
-        if not valid_identifier(name) or name in BUNDLED_PACKAGES + (_PYTHONFMU,) or name.startswith("_slave_"):
+        if not valid_identifier(name) or name in BUNDLED_PACKAGES + (_PYTHONFMU, PROJECT) or name.startswith("_slave_"):
             raise ValueError(f"extra_modules: {module}: {name!r} cannot be bundled (not an identifier, or the "
                              f"name of a bundled package: {', '.join(BUNDLED_PACKAGES + (_PYTHONFMU,))})")
         files += _python_files(module.parent, module.name)

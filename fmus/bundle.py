@@ -22,7 +22,11 @@ import re
 
 from .runtime.bundled import NAMES
 
-__all__ = ["relocate", "package_init", "RelocationError"]
+__all__ = ["relocate", "package_init", "RelocationError", "PROJECT"]
+
+#: the installed package the project's code lives under (``obsfmu.fmus``, ``obsfmu.observers``, ``obsfmu.plants``):
+#: inside an FMU its place is taken by the FMU's own package
+PROJECT = "obsfmu"
 
 
 class RelocationError(ValueError):
@@ -46,6 +50,11 @@ def relocate(source: bytes, package: str, names, filename: str = "<bundled>") ->
     :class:`RelocationError` naming the file and line.  Relative imports are left alone.
     """
     names = set(names)
+
+    def moved(module: str) -> str:
+        top = module.split(".")[0]
+        return package + module[len(PROJECT):] if top == PROJECT else f"{package}.{module}"
+
     tree = ast.parse(source, filename)
     lines = source.splitlines(keepends=True)
     starts = [0]
@@ -57,15 +66,15 @@ def relocate(source: bytes, package: str, names, filename: str = "<bundled>") ->
 
     edits = []
     for node in ast.walk(tree):
-        if isinstance(node, ast.ImportFrom) and node.level == 0 and node.module.split(".")[0] in names:
+        if isinstance(node, ast.ImportFrom) and node.level == 0 and node.module.split(".")[0] in names | {PROJECT}:
             begin = offset(node.lineno, node.col_offset)
             match = _FROM.match(source, begin)
             if not match or re.sub(rb"\s", b"", match.group(1)).decode() != node.module:
                 raise RelocationError(f"{filename}:{node.lineno}: cannot locate the module name of this import")
-            edits.append((match.start(1), match.end(1), f"{package}.{node.module}"))
+            edits.append((match.start(1), match.end(1), moved(node.module)))
         elif isinstance(node, ast.Import):
             for alias in node.names:
-                if alias.name.split(".")[0] not in names:
+                if alias.name.split(".")[0] not in names | {PROJECT}:
                     continue
                 if alias.asname is None and "." in alias.name:
                     raise RelocationError(f"{filename}:{node.lineno}: 'import {alias.name}' binds "
@@ -74,7 +83,7 @@ def relocate(source: bytes, package: str, names, filename: str = "<bundled>") ->
                                           f" or 'import {alias.name} as ...'")
                 bound = alias.asname or alias.name
                 edits.append((offset(alias.lineno, alias.col_offset), offset(alias.end_lineno, alias.end_col_offset),
-                              f"{package}.{alias.name} as {bound}"))
+                              f"{moved(alias.name)} as {bound}"))
     for begin, end, text in sorted(edits, reverse=True):
         source = source[:begin] + text.encode() + source[end:]
     return source

@@ -12,7 +12,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
-PACKAGES = ("fmus", "observers", "plants", "obsfmu")
+#: the installed package the other folders of :data:`PACKAGES` live under (pyproject.toml: obsfmu.fmus, ...);
+#: its own folder holds the public Python API
+PROJECT = "obsfmu"
+PACKAGES = ("fmus", "observers", "plants", PROJECT)
 
 
 @dataclass(frozen=True)
@@ -34,7 +37,8 @@ def module_files(packages=PACKAGES, root: Path = ROOT) -> dict[str, Path]:
             parts = list(path.relative_to(root).with_suffix("").parts)
             if parts[-1] == "__init__":
                 parts.pop()
-            modules[".".join(parts)] = path
+            prefix = [] if package == PROJECT else [PROJECT]
+            modules[".".join(prefix + parts)] = path
     return modules
 
 

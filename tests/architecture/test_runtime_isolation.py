@@ -12,7 +12,8 @@ from pathlib import Path
 from obsfmu.fmus import builder
 
 ROOT = Path(__file__).resolve().parents[2]
-RUNTIME = "obsfmu.fmus.runtime"
+RUNTIME = "fmus.runtime"
+PROJECT = "obsfmu."   # the installed package of the folders: obsfmu.fmus is the folder fmus/
 
 
 def module_name(path: Path, root: Path = ROOT) -> str:
@@ -26,14 +27,14 @@ def imports(source: str, module: str, is_package: bool) -> list[tuple[int, str]]
     found = []
     for node in ast.walk(ast.parse(source)):
         if isinstance(node, ast.Import):
-            found += [(node.lineno, alias.name) for alias in node.names]
+            found += [(node.lineno, alias.name.removeprefix(PROJECT)) for alias in node.names]
         elif isinstance(node, ast.ImportFrom):
             if node.level:
                 package = module.split(".") if is_package else module.split(".")[:-1]
                 base = package[:len(package) - node.level + 1]
                 target = ".".join(base + ([node.module] if node.module else []))
             else:
-                target = node.module
+                target = node.module.removeprefix(PROJECT)
             found.append((node.lineno, target))
             found += [(node.lineno, f"{target}.{alias.name}") for alias in node.names if alias.name != "*"]
     return found

@@ -39,9 +39,10 @@ def variants(tmp_path_factory):
     root = tmp_path_factory.mktemp("variants")
     original = build_fmu(source_definition("variant_source", offset=0.5), root / "original")
     copy = root / "project"
-    for package in ("observers", "plants", "fmus"):
-        shutil.copytree(PROJECT_ROOT / package, copy / package, ignore=shutil.ignore_patterns("__pycache__"))
-    with open(copy / "plants" / "signals.py", "a") as handle:
+    shutil.copytree(PROJECT_ROOT / "obsfmu", copy / "obsfmu", ignore=shutil.ignore_patterns("__pycache__"))
+    for package in ("observers", "plants", "fmus"):     # installed as obsfmu.<package>
+        shutil.copytree(PROJECT_ROOT / package, copy / "obsfmu" / package, ignore=shutil.ignore_patterns("__pycache__"))
+    with open(copy / "obsfmu" / "plants" / "signals.py", "a") as handle:
         handle.write(VARIANT)
     built = python("""
         import json, sys
@@ -60,9 +61,9 @@ def test_two_code_variants_in_one_process(variants):
     original, variant = variants
     result = python("""
         import json, sys
-        import fmus.runtime.kinds.signals, plants.signals            # the host's own project code
+        import obsfmu.fmus.runtime.kinds.signals, obsfmu.plants.signals   # the host's own project code
         path_before, plain_before = list(sys.path), {m for m in sys.modules if m.split(".")[0] in
-                                                      ("fmus", "observers", "plants", "pythonfmu")}
+                                                      ("obsfmu", "fmus", "observers", "plants", "pythonfmu")}
         from fmpy import extract, read_model_description, simulate_fmu
         from fmpy.fmi2 import FMU2Slave
 
@@ -83,7 +84,7 @@ def test_two_code_variants_in_one_process(variants):
         for slave, vr in alive:
             slave.doStep(0.0, 0.01)
         values += [slave.getReal([vr["y"]])[0] for slave, vr in alive]
-        plain_after = {m for m in sys.modules if m.split(".")[0] in ("fmus", "observers", "plants", "pythonfmu")}
+        plain_after = {m for m in sys.modules if m.split(".")[0] in ("obsfmu", "fmus", "observers", "plants", "pythonfmu")}
         print(json.dumps({"values": values, "path_unchanged": sys.path == path_before,
                           "plain_unchanged": plain_after == plain_before,
                           "packages": sorted(m for m in sys.modules if m.startswith("_obsfmu_") and "." not in m)}))
@@ -105,7 +106,7 @@ def test_observers_of_two_kinds_one_after_the_other(build_dir):
         for path in sys.argv[1:]:
             result = simulate_fmu(path, stop_time=0.01, output_interval=0.005)
             outputs.append(len(result))
-        plain = sorted(m for m in sys.modules if m.split(".")[0] in ("fmus", "observers", "plants", "pythonfmu"))
+        plain = sorted(m for m in sys.modules if m.split(".")[0] in ("obsfmu", "fmus", "observers", "plants", "pythonfmu"))
         print(json.dumps({"outputs": outputs, "path_unchanged": sys.path == path_before, "plain": plain}))
     """, *map(str, paths), flags=("-I",))
     assert result["outputs"] == [3, 3] and result["path_unchanged"] and result["plain"] == []
