@@ -22,8 +22,8 @@ def clean_clone(destination: Path) -> Path:
     listed = subprocess.run(["git", "ls-files", "-z"], cwd=PROJECT_ROOT, capture_output=True)
     files = [f for f in listed.stdout.decode().split("\0") if f] if listed.returncode == 0 else []
     if not files:
-        files = ["pyproject.toml", "setup.cfg", "README.md"] + [
-            str(p.relative_to(PROJECT_ROOT)) for package in ("fmus", "observers", "plants")
+        files = ["pyproject.toml", "setup.cfg", "setup.py", "README.md"] + [
+            str(p.relative_to(PROJECT_ROOT)) for package in ("obsfmu", "fmus", "observers", "plants")
             for p in (PROJECT_ROOT / package).rglob("*") if p.is_file() and "__pycache__" not in p.parts]
     for name in files:
         if (PROJECT_ROOT / name).is_file():
@@ -52,8 +52,10 @@ def test_pip_install_then_build_and_run_from_elsewhere(tmp_path):
     assert not (clone / "build").exists()  # setuptools' output went to .setuptools-build (setup.cfg)
     elsewhere = tmp_path / "elsewhere"
     elsewhere.mkdir()
-    location = command(venv / "bin" / "python", "-c", "import fmus.native; print(fmus.native.__file__)", cwd=elsewhere)
+    location = command(venv / "bin" / "python", "-c", "import obsfmu.fmus.native as n; print(n.__file__)", cwd=elsewhere)
     assert location.startswith(site), location  # the installed copy, not this checkout
+    installed = sorted(p.name for p in Path(site).iterdir() if p.is_dir() and not p.name.endswith("-info"))
+    assert installed == ["obsfmu"], installed     # issue 38: no collision-prone top-level package (fmus, plants, ...)
 
     built = command(venv / "bin" / "obsfmu", "build", cwd=elsewhere)
     assert "INVALID" not in built and (elsewhere / "build" / "ship_observer.fmu").is_file()
