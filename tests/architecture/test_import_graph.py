@@ -4,6 +4,8 @@ test_runtime_isolation.py."""
 
 from __future__ import annotations
 
+import ast
+
 import pytest
 
 from import_graph import Import, cycles, imports, is_ancestor_or_self, module_files  # noqa: I001
@@ -47,3 +49,21 @@ def test_no_import_of_another_modules_private_names(edges):
         if _private(last) and not is_ancestor_or_self(".".join(package), edge.importer):
             offenders.append(f"{edge.importer}:{edge.line} imports the private module {edge.target}")
     assert not offenders, "private names imported across modules: " + "; ".join(offenders)
+
+
+def test_every_import_of_the_project_goes_through_obsfmu():
+    """The folders fmus/, observers/ and plants/ are installed as obsfmu.fmus, ... only: an ``import fmus``
+    works in a checkout (the folder is on sys.path) but loads a second copy of the module there and fails
+    where obsfmu is installed."""
+    from import_graph import PROJECT, ROOT
+    bare = {"fmus", "observers", "plants"}
+    found = []
+    for folder in ("fmus", "observers", "plants", PROJECT, "tests", "benchmarks", "examples"):
+        for path in sorted((ROOT / folder).rglob("*.py")):
+            tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+            for node in ast.walk(tree):
+                names = [a.name for a in node.names] if isinstance(node, ast.Import) else \
+                    [node.module] if isinstance(node, ast.ImportFrom) and node.level == 0 and node.module else []
+                found += [f"{path.relative_to(ROOT)}:{node.lineno}: {name}" for name in names
+                          if name.split(".")[0] in bare]
+    assert not found, "imports outside obsfmu: " + "; ".join(found)

@@ -49,11 +49,11 @@ def ship_build(build_dir):
 @pytest.fixture
 def no_simulation(monkeypatch):
     """Fail the test if an FMU is instantiated: the error must come before the simulation."""
-    import fmus.scenarios
+    import obsfmu.fmus.scenarios as scenarios_module
 
     def refuse(*args, **kwargs):
         raise AssertionError("the simulation started although the command line was bad")
-    monkeypatch.setattr(fmus.scenarios, "Session", refuse)
+    monkeypatch.setattr(scenarios_module, "Session", refuse)
 
 
 def _configs(tmp_path):
@@ -280,8 +280,8 @@ def test_the_steps_line_carries_the_time_unit(build_dir, capsys):
 
 
 def test_output_paths_are_checked_before_anything_is_built(tmp_path, monkeypatch, capsys):
-    import fmus.scenarios
-    monkeypatch.setattr(fmus.scenarios, "ensure_fmus", lambda *a, **k: pytest.fail("built before the check"))
+    import obsfmu.fmus.scenarios as scenarios_module
+    monkeypatch.setattr(scenarios_module, "ensure_fmus", lambda *a, **k: pytest.fail("built before the check"))
     assert cli.main(["run", "ship", "--build-dir", str(tmp_path / "b"), "--csv", str(tmp_path / "no" / "x.csv")]) == 2
     assert not (tmp_path / "b").exists() or not list((tmp_path / "b").iterdir())
     assert os.path.basename(str(tmp_path / "no")) in capsys.readouterr().err

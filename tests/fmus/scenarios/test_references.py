@@ -7,9 +7,9 @@ from pathlib import Path
 
 import pytest
 
-import fmus.scenarios
+from obsfmu.fmus import scenarios as bundled_scenarios
 
-FOLDER = Path(fmus.scenarios.__file__).parent
+FOLDER = Path(bundled_scenarios.__file__).parent
 REFERENCES = sorted(FOLDER.glob("*/reference.py"))
 PROJECT = {"observers", "plants", "fmus", "benchmarks", "tests"}
 
@@ -20,7 +20,7 @@ def test_every_paper_has_its_reference_generator_in_a_scenario_folder():
 
 
 def test_a_shared_folder_is_no_scenario():
-    names = {scenario.name for scenario in fmus.scenarios.SCENARIOS.values()}
+    names = {scenario.name for scenario in bundled_scenarios.SCENARIOS.values()}
     assert not any(name.endswith("common") for name in names)
     assert {"ltv-ls", "ltv-ls-bounded", "state-affine-pendulum", "state-affine-chemostat"} <= names
 

@@ -337,7 +337,7 @@ def test_a_system_file_read_from_a_pipe(tmp_path):
 
 def test_the_figure_gives_every_compared_quantity_its_own_colour(monkeypatch, tmp_path):
     """Two more [[report.compare]] tables of one entry each: every error curve its own colour."""
-    import fmus.plotting
+    import obsfmu.fmus.plotting as plotting
     from obsfmu.fmus.result import Result
     from obsfmu.fmus.system import load_system
     path = tmp_path / "two.toml"
@@ -345,7 +345,7 @@ def test_the_figure_gives_every_compared_quantity_its_own_colour(monkeypatch, tm
                     '\n[[report.compare]]\nestimate = "observer.x_hat[3]"\ntruth = "plant.x[3]"\n')
     spec = load_system(path)
     captured = {}
-    monkeypatch.setattr(fmus.plotting, "figure", lambda path, title, panels, unit: captured.setdefault("p", panels))
+    monkeypatch.setattr(plotting, "figure", lambda path, title, panels, unit: captured.setdefault("p", panels))
     columns = [f"{port}[{i}]" for port in ("plant.x", "observer.x_hat") for i in (1, 2, 3)]
     spec.plot(Result(np.linspace(0, 1, 5), columns, np.ones((5, 6))), tmp_path / "f.png")
     keys = [curve.key for curve in captured["p"][-1].curves if curve.role == "error"]
