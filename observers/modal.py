@@ -135,7 +135,16 @@ ACKERMANN_CONDITION = 1e8
 
 
 def _characteristic(poles: np.ndarray) -> np.ndarray:
-    return np.real(np.poly(poles))
+    """The coefficients of ``prod_i (s - p_i)``, highest power first, multiplied out in real arithmetic: a real
+    pole gives ``s - p``, a conjugate pair ``s^2 - 2 Re(p) s + |p|^2`` (real by construction; and no complex
+    ufunc, which the C runtime of wine 8 lacks, runs in an FMU that designs its gain at initialisation)."""
+    coefficients = np.ones(1)
+    for p in poles:
+        if abs(p.imag) <= 1e-12 * abs(p):     # real (up to the rounding _check_poles accepts)
+            coefficients = np.convolve(coefficients, [1.0, -p.real])
+        elif p.imag > 0:                       # its conjugate (checked present by _check_poles) is skipped
+            coefficients = np.convolve(coefficients, [1.0, -2.0 * p.real, p.real ** 2 + p.imag ** 2])
+    return coefficients
 
 
 def pole_deviation(closed_loop, poles) -> float:

@@ -45,7 +45,10 @@ class Wine:
         Path(folder).mkdir(parents=True, exist_ok=True)
         self.prefix = Path(folder) / "prefix"
         self.environment = {"PATH": os.environ.get("PATH", "/usr/bin:/bin"), "HOME": str(folder),
-                            "WINEPREFIX": str(self.prefix), "WINEDEBUG": "-all", "LANG": "C.UTF-8"}
+                            "WINEPREFIX": str(self.prefix), "WINEDEBUG": "-all", "LANG": "C.UTF-8",
+                            # a crash (e.g. a ucrtbase function wine 8 lacks) ends the program at once instead
+                            # of starting winedbg, which waits for nobody in a test and hangs until the timeout
+                            "WINEDLLOVERRIDES": "winedbg.exe=d"}
 
     def run(self, *arguments, timeout: float = 900, env: dict | None = None) -> subprocess.CompletedProcess:
         return subprocess.run([self.program, *map(str, arguments)], env={**self.environment, **(env or {})},
