@@ -71,7 +71,8 @@ def butterworth(n: int, omega0: float) -> np.ndarray:
     n = _order(n)
     omega0 = require_positive("omega0", omega0)
     k = np.arange(1, n + 1)
-    roots = omega0 * np.exp(1j * np.pi * (2 * k + n - 1) / (2 * n))
+    angle = np.pi * (2 * k + n - 1) / (2 * n)
+    roots = omega0 * (np.cos(angle) + 1j * np.sin(angle))
     return np.real(np.poly(roots))
 
 

@@ -153,10 +153,13 @@ def _define_observer(model_name: str, values: dict, context: Context) -> list:
         raise ParameterError(f"{context.prefix}x_hat0: expected {model.n} entries, got {np.size(x_hat0)}")
     poles = np.linalg.eigvals(model.A - N @ model.C) if poles is None else poles
     design = _design(table) if values["tunable"] else None
-    if design is not None and model.p > 1:
-        # several outputs: the design is scipy's place_poles, which an FMU does not carry (numpy only)
-        context.notes.append(f"{context.prefix.rstrip('.')}: N is the FMU's parameter (a design from {model.p} "
-                             "outputs needs scipy, which the FMU does not carry: tunable designs are single-output)")
+    scipy_needed = design is not None and (model.p > 1 or (design[0] == "t_settle" and design[2] != "binomial"))
+    if scipy_needed:
+        # several outputs (scipy's place_poles) or the Butterworth form (its settling time from scipy's step
+        # response): an FMU carries numpy only, so N itself stays its parameter
+        context.notes.append(f"{context.prefix.rstrip('.')}: N is the FMU's parameter (this design needs scipy, "
+                             "which an FMU does not carry: tunable designs are single-output poles, shift or "
+                             "binomial t_settle)")
         design = None
     return [observer_definition(model_name, model, N, x_hat0, units, values["description"], poles, design)]
 
@@ -217,7 +220,8 @@ register("luenberger", "Luenberger observer of an lti component: `x_hat' = A x_h
              Field("R", "matrix", "measurement noise covariance (p x p, positive definite)", None, example="[[1e-4]]"),
              Field("tunable", "boolean", "the design (`t_settle`, `shift` or real `poles`) is the FMU's parameter "
                    "and N is designed from it at initialisation (`--set`, `--vary`, importers change it); false, "
-                   "or a plant with several outputs: N itself is the parameter", True, example="false"),),
+                   "or a plant with several outputs, or the butterworth form: N itself is the parameter", True,
+                   example="false"),),
          _define_observer, depends=("plant",))
 
 
