@@ -67,6 +67,22 @@ class Instance:
                                       f"expected an {causality}")
         return names
 
+    def output_dependencies(self) -> list[set[str] | None]:
+        """Per output (in :attr:`outputs` order): the input elements it depends on directly, from the
+        modelDescription's ModelStructure, or None (not declared: every input, as the standard says)."""
+        declared: dict[str, set[str] | None] = {}
+        for unknown in self.description.outputs:
+            inputs = None if unknown.dependencies is None else \
+                {e for d in unknown.dependencies if d.causality == "input" for e in self._elements_of(d.name)}
+            for element in self._elements_of(unknown.variable.name):
+                declared[element] = inputs
+        return [declared.get(output) for output in self.outputs]
+
+    def _elements_of(self, variable: str) -> list[str]:
+        """The element names of a modelDescription variable (FMI 2.0: itself; FMI 3.0 arrays: ``v[i]``)."""
+        return [variable] if variable in self.variables else \
+            [n for n in self.variables if n.startswith(variable + "[")]
+
     # ------------------------------------------------------------------ the stepping loop
     def prepare(self) -> None:
         """Buffers of the stepping loop (after wiring): input values and slopes, Gauss-Seidel indices."""

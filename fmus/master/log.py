@@ -38,6 +38,12 @@ class Logger:
         if self.echo and status >= 1:
             print(f"[{entry[1]}] {entry[0]}: {entry[2]}", file=sys.stderr)
 
+    def note(self, message: str) -> None:
+        """A message of the master itself (instance ``master``), echoed to stderr."""
+        self.messages.append(("master", "OK", message))
+        if self.echo:
+            print(f"[note] master: {message}", file=sys.stderr)
+
     def last(self, instance: str, count: int = 3) -> str:
         """The last ``count`` messages of ``instance``, joined, or ``"no message logged"``."""
         mine = [m for i, _, m in (e for e in self.messages) if i == instance]

@@ -28,6 +28,7 @@ import numpy as np
 
 from .errors import WARNING, call, check
 from .instance import Instance
+from .loops import LoopSolver, find_loops
 
 __all__ = ["Stepper", "NativeRound"]
 
@@ -56,6 +57,11 @@ class Stepper:
         self.batched = {inst for inst in self.order if inst.batched}
         #: the whole Gauss-Seidel round in one call of a binary, when every instance can
         self.native = None if jacobi else NativeRound.of(self.order, self.live, linear)
+        loops = find_loops(self.order)
+        #: solves the algebraic loops at every communication point (None: there are none)
+        self.loops = LoopSolver(loops, self.live, logger) if loops else None
+        members = {inst for loop in loops for inst in loop.members}
+        self._downstream = [inst for inst in self.feedthrough if inst not in members]
 
     def settle(self, passes: int) -> None:
         """Propagate outputs to inputs until direct-feedthrough chains are consistent."""
@@ -64,6 +70,17 @@ class Stepper:
                 inst.input_values[:] = self.live[inst.input_sources]
                 check(inst, self.logger, "setting inputs", inst.set_inputs())
                 check(inst, self.logger, "reading outputs", inst.refresh_outputs())
+
+    def solve_loops(self, t: float) -> None:
+        """Make the algebraic loops consistent at ``t`` (:mod:`.loops`), then pass their outputs on
+        once to the other direct-feedthrough instances."""
+        if self.loops is None:
+            return
+        self.loops.solve(t)
+        for inst in self._downstream:
+            inst.input_values[:] = self.live[inst.input_sources]
+            check(inst, self.logger, "setting inputs", inst.set_inputs())
+            check(inst, self.logger, "reading outputs", inst.refresh_outputs())
 
     def mark_communication_point(self) -> None:
         self.now = self.live.copy()
@@ -77,6 +94,9 @@ class Stepper:
                 check(failed or self.order[0], self.logger,
                       lambda: f"doStep(t={t:.9g}, h={h:.3g}) with its inputs", status)
             self.before, self.now, self.h_before = native.before, native.now, h
+            if self.loops is not None:
+                self.solve_loops(t + h)
+                self.now[:] = self.live               # the native round's own history buffer
             return
         live, now, linear = self.live, self.now, self.linear
         if linear:
@@ -110,6 +130,7 @@ class Stepper:
                 check(inst, self.logger, "reading outputs", status)
         if self.jacobi and self.feedthrough:
             self.settle(len(self.feedthrough))
+        self.solve_loops(t + h)
         self.before, self.h_before = now, h
         self.now = live.copy()
 

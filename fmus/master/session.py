@@ -176,6 +176,8 @@ class Session:
             for inst in self.instances.values():
                 call(inst, self.logger, "terminate", inst.terminate)
         result = recorder.result()
+        if stepper.loops is not None:
+            self.logger.note(stepper.loops.report())
         if loop.interrupted and hasattr(result, "interrupted"):
             result.interrupted = True
         return result
@@ -239,6 +241,7 @@ def _initialize(instances: dict[str, Instance], starts: dict[str, dict[str, floa
     for inst in instances.values():
         call(inst, logger, "exitInitializationMode", inst.exit_initialization_mode)
         check(inst, logger, "reading outputs", inst.refresh_outputs())
+    stepper.solve_loops(start_time)
     if not np.all(np.isfinite(stepper.live)):
         bad = [inst.name for inst in instances.values() if not np.all(np.isfinite(inst.output_values))]
         raise SimulationError(f"initial outputs of {bad} are not finite; FMU says: "

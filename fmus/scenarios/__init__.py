@@ -425,9 +425,9 @@ def _check_rate(scenario: Scenario, step: float, coupling: str) -> None:
 def _print_warnings(session: Session) -> None:
     seen = set()
     for instance, status, message in getattr(getattr(session, "logger", None), "messages", []):
-        if status == "WARNING" and (instance, message) not in seen:
-            seen.add((instance, message))
-            print(f"[WARNING] {instance}: {message}", file=sys.stderr)
+        if (status == "WARNING" or instance == "master") and (instance, message) not in seen:
+            seen.add((instance, message))          # the master's notes: e.g. the algebraic loops it solved
+            print(f"[{'note' if instance == 'master' else status}] {instance}: {message}", file=sys.stderr)
 
 
 #: every scenario, by name (discovered last: the scenario modules import the helpers above)
