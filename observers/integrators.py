@@ -14,6 +14,10 @@ of a co-simulation must not depend on the master taking tiny steps).
   the step is ``x(t0 + h) = Phi x + G0 u0 + G1 du`` (Van Loan's method).
 * :func:`rk4_step` -- classical Runge-Kutta 4 with equal sub-steps, for
   time-varying or nonlinear dynamics.
+* :func:`rk4_controlled` -- the same RK4 sub-steps under local error control (the embedded
+  third-order solution of the same stages): a sub-step whose error estimate exceeds
+  ``atol + rtol |x|`` is taken again shorter, so a stiff or fast plant is integrated right or
+  refused by its sub-step budget, never silently wrong.
 * :func:`substep_count` -- how many sub-steps a communication step needs, within the block's
   work budget: every block that sub-steps or iterates calls it *before* doing any work, so
   that no call takes unbounded time (a step of 1e6 s is refused at once, not computed).
@@ -28,7 +32,7 @@ import numpy as np
 
 from .checks import ParameterError, SignalError
 
-__all__ = ["LinearPropagator", "rk4_step", "expm", "substep_count", "sample_count", "require_budget", "BudgetError",
+__all__ = ["LinearPropagator", "rk4_step", "rk4_controlled", "expm", "substep_count", "sample_count", "require_budget", "BudgetError",
            "DEFAULT_SUBSTEP_BUDGET"]
 
 #: default of every block's ``substep_budget``: sub-steps one communication step may take
@@ -233,3 +237,58 @@ def rk4_step(f: Callable[[float, np.ndarray], np.ndarray], t: float, x: np.ndarr
         k4 = f(end, x + dt * k3)
         x = x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
     return x
+
+
+def rk4_controlled(f: Callable[[float, np.ndarray], np.ndarray], t: float, x: np.ndarray, h: float,
+                   substeps: int, rtol: float, atol: float, budget: int = DEFAULT_SUBSTEP_BUDGET) -> np.ndarray:
+    """Advance ``x' = f(t, x)`` from ``t`` to ``t + h`` by RK4 sub-steps of at most ``h / substeps``, each
+    accepted only if its local error estimate is within ``atol + rtol max(|x|, |x_next|)`` (every component).
+
+    The estimate is the difference to the embedded third-order solution of the same stages and
+    ``k5 = f(t + dt, x_next)`` (which is the next sub-step's ``k1``: one evaluation more per call)::
+
+        x_next = x + dt (k1 + 2 k2 + 2 k3 + k4) / 6,   x3 = x + dt (k1 + 2 k2 + 2 k3 + k5) / 6,
+        error ~ x_next - x3 = dt (k4 - k5) / 6
+
+    (``b3 = [1/6, 1/3, 1/3, 0, 1/6]`` meets the four third-order conditions on RK4's nodes and matrix).
+    A rejected sub-step is retried at ``dt (0.9 / ratio)^(1/4)`` (at least ``dt / 10``); accepted ones grow
+    back to ``h / substeps`` at most.  While nothing is rejected the sub-steps and the result are those of
+    :func:`rk4_step`.  More than ``budget`` attempts: :class:`BudgetError` naming ``substep_budget``,
+    ``rtol`` and ``atol`` (a stiff plant needs sub-steps of about ``2.8 / |lambda|``).  A non-finite
+    state is returned as it is (the caller refuses it).
+    """
+    nominal = h / substeps
+    dt, s, stop, attempts, rejected = nominal, t, t + h, 0, False
+    k1 = f(t, x)
+    i = 0
+    while True:
+        if not rejected:                                   # rk4_step's grid, to the last bit
+            s, end, dt = t + i * nominal, t + (i + 1) * nominal, nominal
+        else:
+            end = s + dt if s + dt < stop - 1e-12 * abs(h) else stop
+            dt = end - s
+        attempts += 1
+        if attempts > budget:
+            raise BudgetError(f"substep_budget: the step h = {h:g} needs more than substep_budget = {budget} "
+                              f"sub-steps to keep the local error within rtol = {rtol:g}, atol = {atol:g} (the last "
+                              f"ones {dt:.3g} long): the plant is stiff or very fast here; raise rtol/atol or "
+                              f"substep_budget, or take a shorter step")
+        k2 = f(s + dt / 2, x + dt / 2 * k1)
+        k3 = f(s + dt / 2, x + dt / 2 * k2)
+        k4 = f(end, x + dt * k3)
+        x_next = x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        if not np.all(np.isfinite(x_next)):
+            return x_next
+        k5 = f(end, x_next)
+        scale = atol + rtol * np.maximum(np.abs(x), np.abs(x_next))
+        ratio = float(np.max(np.abs(dt / 6 * (k4 - k5)) / scale)) if x.size else 0.0
+        if not ratio <= 1.0:                               # NaN too: shorter
+            rejected = True
+            dt *= max(0.1, 0.9 * ratio ** -0.25) if np.isfinite(ratio) else 0.1
+            continue
+        x, k1, s = x_next, k5, end
+        i += 1
+        if s >= stop or (not rejected and i == substeps):
+            return x
+        if rejected:
+            dt = min(nominal, dt * min(5.0, 0.9 * ratio ** -0.25 if ratio > 0 else 5.0))

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from scipy.linalg import expm as scipy_expm
 
-from obsfmu.observers.integrators import LinearPropagator, expm
+from obsfmu.observers.integrators import BudgetError, LinearPropagator, expm, rk4_controlled, rk4_step
 
 
 def _relative(E, R) -> float:
@@ -66,3 +66,54 @@ def test_highly_non_normal_matrices_agree_with_scipy(coupling):
         reference = scipy_expm(M * t)
         assert np.all(np.isfinite(expm(M * t)))
         assert _relative(expm(M * t), reference) < 1e-10, t   # entries up to 5e54
+
+
+# -- rk4_controlled: RK4 sub-steps under local error control (expression plants)
+
+
+def _pendulum(t, x):
+    return np.array([x[1], -19.62 * np.sin(x[0]) - 0.3 * x[1] + np.sin(3 * t)])
+
+
+@pytest.mark.parametrize("h, substeps", [(1e-3, 1), (1e-2, 3), (0.05, 50)])
+def test_controlled_rk4_is_plain_rk4_where_the_error_is_within_tolerance(h, substeps):
+    """Nothing rejected: the same sub-steps, the same result to the last bit (the scenarios' numbers kept)."""
+    x_plain = x_controlled = np.array([0.5, 0.0])
+    for k in range(20):
+        x_plain = rk4_step(_pendulum, k * h, x_plain, h, substeps)
+        x_controlled = rk4_controlled(_pendulum, k * h, x_controlled, h, substeps, 1e-8, 1e-12)
+    assert np.array_equal(x_plain, x_controlled)
+
+
+@pytest.mark.parametrize("rate", [-2700.0, -2e4])
+def test_controlled_rk4_integrates_a_stiff_decay_to_its_absolute_tolerance(rate):
+    """x' = rate x at h = 1e-3 (|h rate| 2.7 and 20: plain RK4 is inaccurate, then unstable): within
+    atol = 1e-12 (plus rtol of the start) of exp(rate t) at every point."""
+    x, worst = np.array([1.0]), 0.0
+    for k in range(50):
+        x = rk4_controlled(lambda t, x: rate * x, k * 1e-3, x, 1e-3, 1, 1e-8, 1e-12)
+        worst = max(worst, abs(x[0] - np.exp(rate * (k + 1) * 1e-3)))
+    assert worst < 1e-9
+    plain = np.array([1.0])
+    for k in range(50):
+        plain = rk4_step(lambda t, x: rate * x, k * 1e-3, plain, 1e-3, 1)
+    assert abs(plain[0]) > 1e-3                       # what the error control is for
+
+
+def test_controlled_rk4_agrees_with_scipy_on_a_nonlinear_stiff_oscillator():
+    """Van der Pol, mu = 50 (relaxation: stiff stretches), h = 1e-2 in 10 sub-steps: within 1e-6 of
+    scipy's Radau at rtol 1e-12 over 5 s."""
+    from scipy.integrate import solve_ivp
+
+    def vdp(t, x):
+        return np.array([x[1], 50.0 * (1 - x[0] ** 2) * x[1] - x[0]])
+    x = np.array([2.0, 0.0])
+    for k in range(500):
+        x = rk4_controlled(vdp, k * 1e-2, x, 1e-2, 10, 1e-10, 1e-12)
+    reference = solve_ivp(vdp, (0, 5.0), [2.0, 0.0], method="Radau", rtol=1e-12, atol=1e-14).y[:, -1]
+    assert np.max(np.abs(x - reference)) < 1e-6
+
+
+def test_controlled_rk4_refuses_past_its_budget_naming_it():
+    with pytest.raises(BudgetError, match="substep_budget = 20 .* rtol = 1e-14"):
+        rk4_controlled(lambda t, x: -2700.0 * x, 0.0, np.array([1.0]), 1e-3, 1, 1e-14, 1e-300, budget=20)

@@ -79,3 +79,17 @@ def test_a_plant_without_inputs_and_bad_sizes():
     assert abs(plant.x[0] - exact) < 1e-12
     with pytest.raises(ValueError, match="x0: expected 1 entries, got 2"):
         ExpressionPlant(f, f, [], [0.0, 1.0], 0)
+
+
+def test_a_stiff_expression_plant_is_right_or_refused_by_name(tmp_path):
+    """f = -2700 x (issue 37: plain RK4 at max_substep 1e-3 gave x(0.05) = 1.6e-3, exact 2e-59): within
+    1e-7 relative + 1e-11 of exp(-2700 t) at every point (measured: 1.1e-8 relative at 1 ms, 1.5e-15 at the end); with a budget too small for the tolerance, refused naming substep_budget."""
+    import obsfmu
+    from obsfmu.fmus.master.errors import SimulationError
+    system = obsfmu.System("stiff", stop_time=0.05, step=1e-3).add(
+        "plant", kind="expression", f=["-2700 * x[1]"], h=["x[1]"], x0=[1.0])
+    result = obsfmu.run(system, build_dir=tmp_path)
+    exact = np.exp(-2700.0 * result.time)
+    assert np.all(np.abs(result["plant.x[1]"] - exact) <= 1e-7 * exact + 1e-11)
+    with pytest.raises(SimulationError, match="substep_budget = 20 sub-steps to keep the local error within rtol"):
+        obsfmu.run(system, build_dir=tmp_path, set={"plant.rtol": 1e-14, "plant.substep_budget": 20})

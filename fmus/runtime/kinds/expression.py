@@ -5,7 +5,7 @@ compiler :func:`observers.expressions.compile_vector` -- never ``eval`` -- and o
 function too, so a bad expression is refused at BUILD time naming its field (``f[2]``).  The named
 parameters are FMU parameters of their own names (scalars, with their units), in the order of the
 vector ``p`` the expressions may also index (``p[1]`` is the first name); the initial state is
-``x0[i]``; ``max_substep`` (continuous), ``sample_time`` (discrete: ``x[k+1] = f``) and
+``x0[i]``; ``max_substep``, ``rtol`` and ``atol`` (continuous: the sub-steps' error control), ``sample_time`` (discrete: ``x[k+1] = f``) and
 ``substep_budget`` are parameters.  A discrete FMU accepts any step length that is a whole number of
 samples; another step is refused (fmi2Discard, a log line naming ``sample_time``).
 
@@ -20,7 +20,7 @@ import numpy as np
 
 from obsfmu.observers.checks import ParameterError
 from obsfmu.observers.expressions import CONSTANTS, FUNCTIONS, VECTORS, Names, Source, compile_vector
-from obsfmu.plants.expression import ExpressionPlant
+from obsfmu.plants.expression import DEFAULT_ATOL, DEFAULT_RTOL, ExpressionPlant
 
 from ..definition import FmuDefinition, Parameter, Port, valid_identifier
 from .linear import vector_unit
@@ -29,7 +29,7 @@ from . import register
 __all__ = ["expression_plant_definition"]
 
 #: parameter names of the FMU itself, never a named parameter of the expressions
-_RESERVED = {"x0", "y", "max_substep", "sample_time", "substep_budget", "u_interpolation", "t", *VECTORS, *CONSTANTS,
+_RESERVED = {"x0", "y", "max_substep", "rtol", "atol", "sample_time", "substep_budget", "u_interpolation", "t", *VECTORS, *CONSTANTS,
              *FUNCTIONS}
 
 
@@ -53,7 +53,8 @@ def _expression_plant(p, options):
     sample_time = p.get("sample_time")
     return ExpressionPlant(f, h, vector, p["x0"], int(options["inputs"]),
                            sample_time=None if sample_time is None else float(sample_time),
-                           max_substep=float(p.get("max_substep", 1.0)), substep_budget=float(p["substep_budget"]))
+                           max_substep=float(p.get("max_substep", 1.0)), rtol=float(p.get("rtol", DEFAULT_RTOL)),
+                           atol=float(p.get("atol", DEFAULT_ATOL)), substep_budget=float(p["substep_budget"]))
 
 
 def _named_parameters(parameters: Mapping, units: Mapping, prefix: str) -> list[Parameter]:
@@ -84,7 +85,8 @@ def _units(field: str, units, size: int):
 def expression_plant_definition(model_name: str, f: Sequence[str], h: Sequence[str], x0, *, inputs: int = 0,
                                 parameters: Mapping[str, float] | None = None,
                                 parameter_units: Mapping[str, str] | None = None, sample_time: float | None = None,
-                                max_substep: float = 1e-3, substep_budget=None, state_units=None, output_units=None,
+                                max_substep: float = 1e-3, rtol: float = DEFAULT_RTOL, atol: float = DEFAULT_ATOL,
+                                substep_budget=None, state_units=None, output_units=None,
                                 input_units=None, field_prefix: str = "", description: str = "") -> FmuDefinition:
     """Plant ``dx/dt = f(t, x, u, p)`` (``sample_time`` given: ``x[k+1] = f``), ``y = h(t, x, u, p)``.
 
@@ -111,6 +113,9 @@ def expression_plant_definition(model_name: str, f: Sequence[str], h: Sequence[s
     fmu_parameters.append(Parameter.of("x0", x0, "initial state x(0)", state_unit))
     if sample_time is None:
         fmu_parameters.append(Parameter.scalar("max_substep", max_substep, "longest RK4 sub-step", "s"))
+        fmu_parameters.append(Parameter.scalar("rtol", rtol, "relative local error tolerance of each sub-step"))
+        fmu_parameters.append(Parameter.scalar("atol", atol, "absolute local error tolerance of each sub-step",
+                                               state_unit if isinstance(state_unit, str) else None))
     else:
         fmu_parameters.append(Parameter.scalar("sample_time", sample_time, "sample time T: x[k+1] = f", "s"))
     fmu_parameters.append(Parameter.substep_budget(substep_budget))
