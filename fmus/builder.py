@@ -8,7 +8,8 @@ An FMU built here contains (layout and reasons: ``docs/portability.md``):
 * ``binaries/<platform>/<model>.so`` -- the loader of the FMI version, and the bridge for the
   building Python version (:mod:`fmus.native`; FMI 3.0: ``binaries/<platform tuple>/``);
 * ``resources/`` -- the definition JSON, ``build_info.json`` (hash of everything the FMU is made
-  of, for :func:`is_current`; the numpy and scipy it was built and tested with: :mod:`fmus.runtime.slave.versions`), ``obsfmu_native.txt`` (GUID, the Python to use, where the slave
+  of, for a reader; whether a cached FMU is reused is judged from its build record *beside* it,
+  :func:`why_not_current`; the numpy and scipy it was built and tested with: :mod:`fmus.runtime.slave.versions`), ``obsfmu_native.txt`` (GUID, the Python to use, where the slave
   is) and the bundled code relocated under ``_obsfmu_<hash>/`` (:mod:`fmus.bundle`): the project
   packages, pythonfmu's slave base class and the user's extra modules.  The FMU runs in any
   Python environment with numpy and scipy -- not only inside a checkout;
@@ -37,7 +38,7 @@ from .output import file_mode
 from .runtime.definition import FmuDefinition, valid_identifier
 from .runtime.slave import versions
 
-__all__ = ["build_fmu", "is_current", "source_hash", "platforms_of", "PROJECT_ROOT", "BUNDLED_PACKAGES",
+__all__ = ["build_fmu", "is_current", "why_not_current", "record_path", "source_hash", "platforms_of", "PROJECT_ROOT", "BUNDLED_PACKAGES",
            "BUNDLED_CODE"]
 
 PROJECT_ROOT = Path(__file__).resolve().parent.parent
@@ -195,6 +196,7 @@ def build_fmu(definition: FmuDefinition, out_dir: Path | str, extra_modules=(), 
                       RuntimeWarning, stacklevel=2)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
+    sources = source_hash(definition, extra_modules, fmi_version, standalone, platforms)
     with signals_held():    # built whole or not at all: a stop waits for the end of this FMU (fmus.cli.stopping)
         with tempfile.TemporaryDirectory(prefix="obsfmu_build_") as temp:
             resources = Path(temp)
@@ -217,7 +219,7 @@ def build_fmu(definition: FmuDefinition, out_dir: Path | str, extra_modules=(), 
                 "modelDescription.xml": description,
                 f"resources/{model}.json": definition.to_json().encode(),
                 f"resources/{versions.BUILD_INFO}": json.dumps({
-                    "source_hash": source_hash(definition, extra_modules, fmi_version, standalone, platforms),
+                    "source_hash": sources,
                     **built_with}).encode(),
                 "resources/obsfmu_native.txt": record.encode(),
                 "resources/obsfmu_bootstrap.py": native.BOOTSTRAP.read_bytes(),
@@ -248,7 +250,34 @@ def build_fmu(definition: FmuDefinition, out_dir: Path | str, extra_modules=(), 
             os.replace(partial, target)
         finally:
             partial.unlink(missing_ok=True)
+        _write_record(target, sources)
         return target
+
+
+def record_path(fmu: Path) -> Path:
+    """Where the build record of ``fmu`` is kept: beside it, outside the FMU (``.<name>.fmu.built``)."""
+    return fmu.with_name(f".{fmu.name}.built")
+
+
+def _file_hash(path: Path) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as stream:
+        for block in iter(lambda: stream.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def _write_record(fmu: Path, sources: str) -> None:
+    """The build record: what the FMU was built from (:func:`source_hash`) and the SHA-256 of the file as
+    written, so that an FMU edited since is noticed (:func:`why_not_current`)."""
+    record = record_path(fmu)
+    handle, name = tempfile.mkstemp(prefix=record.name + ".", suffix=".partial", dir=fmu.parent)
+    try:
+        with os.fdopen(handle, "w") as stream:
+            json.dump({"source_hash": sources, "sha256": _file_hash(fmu)}, stream)
+        os.replace(name, record)
+    finally:
+        Path(name).unlink(missing_ok=True)
 
 
 def _binaries(platform: str, fmi_version: int) -> tuple[str, Path, Path]:
@@ -266,13 +295,29 @@ def _binaries(platform: str, fmi_version: int) -> tuple[str, Path, Path]:
 
 def is_current(fmu: Path, definition: FmuDefinition, extra_modules=(), fmi_version: int = 2,
                standalone: bool = False, platforms=None) -> bool:
-    """True when ``fmu`` exists and was built from this definition, code, binaries, Python, FMI version, build
-    (standalone or not) and platforms."""
+    """True when ``fmu`` exists, is the file :func:`build_fmu` wrote, and was built from this definition, code,
+    binaries, Python, FMI version, build (standalone or not) and platforms (:func:`why_not_current`)."""
+    return why_not_current(fmu, definition, extra_modules, fmi_version, standalone, platforms) is None
+
+
+def why_not_current(fmu: Path, definition: FmuDefinition, extra_modules=(), fmi_version: int = 2,
+                    standalone: bool = False, platforms=None) -> str | None:
+    """None when ``fmu`` can be reused, else why not.
+
+    Judged by content, from the build record kept *outside* the FMU (:func:`record_path`): the hash of what
+    it is built from must be today's, and the file's SHA-256 the one written at its build -- an FMU edited
+    since (an expression in its JSON, a line added to a bundled module) is never run as it is.  Nothing the
+    FMU says about itself is trusted.  ``"edited"`` starts the answer when the file changed after its build."""
+    fmu = Path(fmu)
+    if not fmu.is_file():
+        return "not built"
     try:
-        with zipfile.ZipFile(fmu) as archive:
-            if archive.getinfo("resources/build_info.json").file_size > 1 << 20:    # not ours: rebuilt
-                return False
-            info = json.loads(archive.read("resources/build_info.json"))
-    except (FileNotFoundError, KeyError, zipfile.BadZipFile, json.JSONDecodeError):
-        return False
-    return info.get("source_hash") == source_hash(definition, extra_modules, fmi_version, standalone, platforms)
+        record = json.loads(record_path(fmu).read_text())
+        recorded_sources, recorded_file = str(record["source_hash"]), str(record["sha256"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return "no build record"
+    if recorded_file != _file_hash(fmu):
+        return "edited since it was built (its SHA-256 is not the one recorded at its build)"
+    if recorded_sources != source_hash(definition, extra_modules, fmi_version, standalone, platforms):
+        return "built from other sources"
+    return None

@@ -33,7 +33,7 @@ def cmd_build(args) -> int:
     if args.config:
         paths = build_definitions(definitions, out, args.fmi_version, args.standalone, args.platform)
     else:
-        paths = build_all(out, args.fmi_version, args.standalone, args.platform)
+        paths = build_all(out, args.fmi_version, args.standalone, args.platform, force=args.rebuild)
     return 1 if report_built(paths) else 0
 
 
@@ -158,6 +158,10 @@ def configure_build(parser) -> None:
     add_fmi_version(parser)
     add_standalone(parser)
     add_platform(parser)
+    parser.add_argument("--rebuild", action="store_true",
+                        help="build every scenario FMU again even if the one in --out is current (by default an "
+                             "FMU is reused when its build record beside it says it is the file built from "
+                             "today's sources; an FMU edited since is rebuilt)")
 
 
 def configure_run(parser) -> None:

@@ -24,7 +24,7 @@ import fmpy
 from fmpy import read_model_description
 
 from .. import native
-from ..builder import build_fmu, is_current, platforms_of
+from ..builder import build_fmu, platforms_of, why_not_current
 from ..fmi3 import build_folder
 from ..fmi3.elements import scalar_variables
 from ..runtime.definition import FmuDefinition, experiment
@@ -34,7 +34,7 @@ from ..result import Result, RunInfo
 if TYPE_CHECKING:
     from ..campaign.measures import Measure
 
-__all__ = ["Scenario", "Summary", "SCENARIOS", "get", "add", "is_added", "ensure_fmus", "ensure_all", "run", "run_info",
+__all__ = ["Scenario", "Summary", "SCENARIOS", "get", "add", "is_added", "ensure_fmus", "ensure_all", "ensure_definitions", "run", "run_info",
            "parse_overrides", "system", "changed_parameters", "check_step"]
 
 
@@ -167,14 +167,20 @@ def _damage(path: Path, platforms=None) -> str | None:
     return None
 
 
-def _ensure(items, build_dir: Path, force: bool, fmi_version: int, standalone: bool = False,
-            platforms=None) -> dict[str, Path]:
+def ensure_definitions(items, build_dir: Path, force: bool, fmi_version: int, standalone: bool = False,
+                       platforms=None) -> dict[str, Path]:
+    """``(definition, extra_modules)`` pairs built into ``build_dir`` (its FMI 3.0 folder for 3) unless the FMU
+    there is current (:func:`fmus.builder.why_not_current`: judged by content; an FMU edited since its build
+    is rebuilt with a note) or ``force``; model name -> path."""
     paths = {}
     folder = build_folder(build_dir, fmi_version)
     for definition, extra_modules in items:
         path = folder / f"{definition.model_name}.fmu"
-        if force or not is_current(path, definition, extra_modules, fmi_version, standalone=standalone,
-                                   platforms=platforms):
+        stale = "rebuild asked" if force else why_not_current(path, definition, extra_modules, fmi_version,
+                                                              standalone=standalone, platforms=platforms)
+        if stale is not None:
+            if stale.startswith("edited"):
+                print(f"obsfmu: note: {path}: {stale}; rebuilding it", file=sys.stderr)
             build_fmu(definition, folder, extra_modules, fmi_version, standalone=standalone, platforms=platforms)
         elif (problem := _damage(path, platforms)) is not None:
             print(f"obsfmu: note: {path}: {problem}; rebuilding it", file=sys.stderr)
@@ -196,7 +202,7 @@ def ensure_fmus(scenario: Scenario, build_dir: Path, force: bool = False, fmi_ve
     (:mod:`fmus.standalone`); an FMU of the other build is rebuilt.  ``platforms``: what the FMUs have binaries
     for (default this machine's; ``"linux64,win64"``, :func:`fmus.builder.build_fmu`).
     """
-    return _ensure(_items(scenario), build_dir, force, fmi_version, standalone, platforms)
+    return ensure_definitions(_items(scenario), build_dir, force, fmi_version, standalone, platforms)
 
 
 def ensure_all(scenarios, build_dir: Path, force: bool = False, fmi_version: int = 2,
@@ -212,7 +218,7 @@ def ensure_all(scenarios, build_dir: Path, force: bool = False, fmi_version: int
             if (known[0].to_json(), known[1]) != (definition.to_json(), extra_modules):
                 raise SimulationError(f"{definition.model_name}: scenarios {known[2]!r} and {scenario.name!r} "
                                       f"define this FMU differently")
-    return _ensure(((d, extra) for d, extra, _ in distinct.values()), build_dir, force, fmi_version, standalone,
+    return ensure_definitions(((d, extra) for d, extra, _ in distinct.values()), build_dir, force, fmi_version, standalone,
                    platforms)
 
 

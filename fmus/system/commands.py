@@ -114,7 +114,7 @@ def build_definitions(definitions: list, out: Path, fmi_version: int = 2, standa
     list of Path
         The FMUs, built into a temporary folder beside their place and moved there once all are built.
     """
-    from ..builder import build_fmu
+    from ..builder import build_fmu, record_path
     from ..fmi3 import build_folder
     folder = build_folder(out, fmi_version)
     folder.mkdir(parents=True, exist_ok=True)
@@ -126,6 +126,7 @@ def build_definitions(definitions: list, out: Path, fmi_version: int = 2, standa
         for fmu in built:
             target = folder / fmu.name
             fmu.replace(target)
+            record_path(fmu).replace(record_path(target))      # its build record goes with it
             paths.append(target)
         return paths
     finally:

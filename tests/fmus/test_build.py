@@ -114,4 +114,14 @@ def test_a_stop_signal_during_a_build_is_taken_once_the_fmu_is_complete(monkeypa
         stopping.restore_handlers(previous)
     assert stopping.interrupted_status(stopped.value) == 128 + signum and signalled
     assert validate_fmu(tmp_path / "out" / "held_source.fmu") == []
-    assert [p.name for p in (tmp_path / "out").iterdir()] == ["held_source.fmu"] and not list(scratch.iterdir())
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == [".held_source.fmu.built", "held_source.fmu"]
+    assert not list(scratch.iterdir())                 # the FMU and its build record (fmus.builder.record_path)
+
+
+def test_a_second_build_of_every_scenario_fmu_builds_nothing(every_fmu, build_dir):
+    """Issue 37: `obsfmu all` rebuilt every FMU on every run.  Every FMU is current (judged by content),
+    so building them all again rewrites no file; --rebuild does."""
+    before = {path: path.stat().st_mtime_ns for _, path in every_fmu.values()}
+    again = runs.build_all(build_dir)
+    assert set(again) == set(before)
+    assert {path: path.stat().st_mtime_ns for path in before} == before

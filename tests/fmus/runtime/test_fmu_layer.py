@@ -271,3 +271,40 @@ def test_an_instance_context_ignores_floating_point_errors_and_leaves_the_caller
         assert np.geterr() == {"divide": "raise", "over": "raise", "under": "raise", "invalid": "raise"}
     finally:
         np.seterr(**old)
+
+
+def test_an_fmu_edited_after_its_build_is_rebuilt_with_a_note_and_a_current_one_is_kept(tmp_path, capsys):
+    """Issue 37: an expression edited inside the FMU's JSON was run as it was (the hash the FMU carries
+    about itself was trusted).  Judged by the build record beside it, the edit is noticed and the FMU
+    rebuilt; a second ensure of an untouched FMU writes nothing."""
+    import zipfile
+
+    from obsfmu.fmus.builder import record_path, why_not_current
+    from obsfmu.fmus.runtime.kinds.expression import expression_plant_definition
+    from obsfmu.fmus.scenarios import ensure_definitions
+
+    definition = expression_plant_definition("edited_plant", ["-x[1]"], ["x[1]"], [1.0])
+    path, = ensure_definitions([(definition, ())], tmp_path, False, 2).values()
+    assert why_not_current(path, definition) is None and record_path(path).is_file()
+    before = path.stat().st_mtime_ns
+    assert ensure_definitions([(definition, ())], tmp_path, False, 2)["edited_plant"] == path
+    assert path.stat().st_mtime_ns == before                          # a second build builds nothing
+
+    edited = tmp_path / "edited.fmu"                                   # -x[1] -> +x[1] in its JSON, same hash
+    with zipfile.ZipFile(path) as source, zipfile.ZipFile(edited, "w") as target:
+        for entry in source.infolist():
+            data = source.read(entry)
+            if entry.filename == "resources/edited_plant.json":
+                assert b'"-x[1]"' in data
+                data = data.replace(b'"-x[1]"', b'"x[1]"')
+            target.writestr(entry, data)
+    edited.replace(path)
+    assert why_not_current(path, definition).startswith("edited since it was built")
+    capsys.readouterr()
+    ensure_definitions([(definition, ())], tmp_path, False, 2)
+    assert "edited since it was built" in capsys.readouterr().err
+    with zipfile.ZipFile(path) as archive:
+        assert b'"-x[1]"' in archive.read("resources/edited_plant.json")
+    assert why_not_current(path, definition) is None
+    record_path(path).unlink()                                         # no record: not trusted, rebuilt
+    assert why_not_current(path, definition) == "no build record"

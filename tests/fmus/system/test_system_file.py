@@ -169,7 +169,8 @@ def test_build_prints_the_designed_gains_and_writes_fmus_with_the_umask(tmp_path
     umask = os.umask(0)
     os.umask(umask)
     assert all((p.stat().st_mode & 0o777) == 0o666 & ~umask for p in (tmp_path / "fmus").glob("*.fmu"))
-    assert not list((tmp_path / "fmus").glob(".*"))         # no temporary folder or file left
+    left = sorted(p.name for p in (tmp_path / "fmus").glob(".*"))   # no temporary folder or file left:
+    assert left == [f".{name}.built" for name in fmus]               # only the build records
 
 
 def _bad(text: str, old: str, new: str) -> str:
