@@ -16,6 +16,7 @@ steps) starts first, so it does not end up alone at the end.
   worker asks after each communication point (for a SIGINT sent to the parent alone) and cancels the
   scenarios not started yet; the exit code is 130.  SIGTERM and SIGHUP are taken the same way (exit
   128 + the signal: 143, 129).
+* **Orphans.** Workers die with the parent, also when it is killed with SIGKILL (:mod:`fmus.orphans`).
 * **Failures.** A scenario that fails does not stop the others: they finish and write their files,
   then the failure is reported as ``obsfmu: error: NAME: why`` (exit 2, no report, as the sequential
   run); an unexpected exception is re-raised in the parent with the worker's traceback.
@@ -27,6 +28,7 @@ import concurrent.futures as futures
 import contextlib
 import io
 import multiprocessing
+import os
 import signal
 import sys
 import threading
@@ -65,9 +67,11 @@ def cost(name: str, settings: dict | None = None) -> float:
 _STOP = None  #: the worker's StopRequest (own SIGINT or the parent's shared flag)
 
 
-def _start_worker(flag) -> None:
+def _start_worker(flag, parent: int) -> None:
     global _STOP
     from .cli.stopping import StopRequest
+    from .orphans import die_with_parent
+    die_with_parent(parent)                   # a parent killed with SIGKILL takes its workers along
     _STOP = StopRequest(quiet=True, shared=flag).__enter__()
 
 
@@ -128,7 +132,7 @@ def run_in_workers(out: Path, build_dir: Path, names: list[str], stop, jobs: int
     shown = 0
     with _sigint_ignored():
         pool = futures.ProcessPoolExecutor(workers, mp_context=context, initializer=_start_worker,
-                                           initargs=(flag,))
+                                           initargs=(flag, os.getpid()))
         pending = {pool.submit(_job, out, build_dir, name, settings.get(name)): name for name in longest_first}
     try:
         while pending:

@@ -39,7 +39,7 @@ from .plots import write_plots
 from .progress import Progress
 from .store import Store, rows_to_table
 from .table import campaign_table, measured, summary_text
-from .worker import FmuPlugin, Task, plugin_name, run_sample
+from .worker import FmuPlugin, ParentWatch, Task, plugin_name, run_sample
 
 __all__ = ["run_campaign", "local_cluster", "default_workers", "ALLOWED_FAILURES", "RETRIES", "LOCALHOST"]
 
@@ -70,6 +70,7 @@ def _client(workers: int | None, scheduler: str | None, client, dashboard: str |
             yield connected
         return
     with local_cluster(workers or default_workers(), dashboard) as cluster, Client(cluster) as local:
+        local.register_plugin(ParentWatch(os.getpid()))      # workers die with this process, SIGKILL too
         if dashboard and log:
             log(f"dashboard: {_dashboard_link(cluster, dashboard)}")
         yield local

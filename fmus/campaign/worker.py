@@ -31,10 +31,11 @@ from pathlib import Path
 from distributed import WorkerPlugin
 
 from .. import scenarios
+from ..orphans import die_with_parent
 from ..system import resolve
 from ..master import Session, SimulationError
 
-__all__ = ["Task", "FmuPlugin", "run_sample", "install_fmus", "STATUSES"]
+__all__ = ["Task", "FmuPlugin", "ParentWatch", "run_sample", "install_fmus", "STATUSES"]
 
 #: row statuses: finished, FMU/summary error, over the time limit, worker lost too often (set by the client)
 STATUSES = ("ok", "error", "timeout", "crashed")
@@ -73,6 +74,22 @@ class FmuPlugin(WorkerPlugin):
 
     def teardown(self, worker) -> None:
         forget_fmus(self.fmu_set)
+
+
+class ParentWatch(WorkerPlugin):
+    """Ends a LocalCluster's worker process when the obsfmu process that started it dies, SIGKILL included
+    (:func:`fmus.orphans.die_with_parent`).  A worker whose parent is another process (a cluster of its
+    own, a nanny elsewhere) is left alone."""
+
+    idempotent = True
+    name = "obsfmu-parent-watch"
+
+    def __init__(self, parent: int):
+        self.parent = parent
+
+    def setup(self, worker) -> None:
+        if os.getppid() == self.parent:
+            die_with_parent(self.parent)
 
 
 def plugin_name(fmu_set: str) -> str:
