@@ -28,11 +28,11 @@ from typing import Mapping
 
 import numpy as np
 
-from obsfmu.observers.block import Block, Segment
+from obsfmu.observers.block import Segment
 from obsfmu.observers.checks import ParameterError, as_vector, require_positive
 from obsfmu.observers.expressions import VectorFunction
-from obsfmu.observers.integrators import (DEFAULT_SUBSTEP_BUDGET, require_budget, rk4_controlled, sample_count,
-                                         substep_count)
+from obsfmu.observers.integrators import DEFAULT_SUBSTEP_BUDGET, require_budget, rk4_controlled, substep_count
+from obsfmu.observers.sampling import SampledBlock
 
 __all__ = ["ExpressionPlant", "DEFAULT_RTOL", "DEFAULT_ATOL"]
 
@@ -40,7 +40,7 @@ __all__ = ["ExpressionPlant", "DEFAULT_RTOL", "DEFAULT_ATOL"]
 DEFAULT_RTOL, DEFAULT_ATOL = 1e-8, 1e-12
 
 
-class ExpressionPlant(Block):
+class ExpressionPlant(SampledBlock):
     """Plant ``x' = f(t, x, u, p)`` (or ``x[k+1] = f`` with ``sample_time``), ``y = h(t, x, u, p)``.
 
     Parameters
@@ -82,14 +82,18 @@ class ExpressionPlant(Block):
         self.input_sizes = {"u": int(inputs)} if inputs else {}
         self.output_sizes = {"y": h.size, "x": f.size}
         self._no_input = np.zeros(0)
+        if self.sample_time is not None:
+            self._init_sampling(self.input_sizes)
 
     def outputs(self, t: float, inputs: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
         u = inputs["u"] if self.input_sizes else self._no_input
         return {"y": self.h(t, self.x, u, self.p), "x": self.x.copy()}
 
     def advance(self, t: float, h: float, inputs: Mapping[str, Segment]) -> None:
-        u = inputs["u"] if self.input_sizes else Segment.hold(self._no_input)
-        self.x = self._samples(t, h, u) if self.sample_time is not None else self._integrate(t, h, u)
+        if self.sample_time is not None:
+            super().advance(t, h, inputs)
+            return
+        self.x = self._integrate(t, h, inputs["u"] if self.input_sizes else Segment.hold(self._no_input))
 
     def _integrate(self, t: float, h: float, u: Segment) -> np.ndarray:
         count = substep_count(h, self.max_substep, budget=self.substep_budget)
@@ -100,10 +104,8 @@ class ExpressionPlant(Block):
             return f(s, x.tolist(), [a + elapsed * b for a, b in zip(start, slope)], p)
         return rk4_controlled(rhs, float(t), self.x, h, count, self.rtol, self.atol, self.substep_budget)
 
-    def _samples(self, t: float, h: float, u: Segment) -> np.ndarray:
-        T = self.sample_time
-        x = self.x
-        for k in range(sample_count(h, T, self.substep_budget)):
-            s = k * T
-            x = self.f(t + s, x, u.start + s * u.slope, self.p)
-        return x
+    def sample_period(self) -> float:
+        return self.sample_time
+
+    def sample(self, t_k: float, inputs: Mapping[str, np.ndarray]) -> None:
+        self.x = self.f(t_k, self.x, inputs["u"] if self.input_sizes else self._no_input, self.p)

@@ -6,11 +6,10 @@ r"""Paper 000's discrete plant (1)-(2): a shift system with generator-driven coe
     \xi(k+1) = \Gamma \xi(k),
 
 for any ``n`` and generator sizes ``l, m, r`` (structure in
-:class:`observers.gpebo.model.GeneratorModel`).  One :meth:`GeneratorPlant.advance`
-is one sample: the communication step must be the sample period ``Ts``
-(anything else is refused), and the input is its value at the step start,
-``u(k) = u(t_k)`` (``inputs["u"].start``; the slope a co-simulation master may
-supply is ignored: a sampled input is constant between samples).
+:class:`observers.gpebo.model.GeneratorModel`).  The plant is updated at
+the instants ``t_k = k Ts`` a communication step contains (any step:
+:class:`~observers.sampling.SampledBlock`), with ``u(k) = u(t_k)`` (the input at the
+step start when ``t_k`` is a communication point; its DefaultExperiment steps one ``Ts``).
 
 Paper example (``n = 2``, ``delta = 0``): ``x1(k+1) = x2(k) + theta1(k) sin x1(k)``,
 ``x2(k+1) = beta(k) u(k)`` (``h_theta = [[1, 0], [0, 0]]`` makes ``theta2 = 0``),
@@ -34,9 +33,9 @@ from typing import Mapping
 
 import numpy as np
 
-from obsfmu.observers.block import Block, Segment
 from obsfmu.observers.checks import as_vector, finite_signal, require_positive
-from obsfmu.observers.gpebo.model import GeneratorModel, require_sample_step, shift_matrix
+from obsfmu.observers.gpebo.model import GeneratorModel, shift_matrix
+from obsfmu.observers.sampling import SampledBlock
 
 __all__ = ["GeneratorPlant", "sine", "example_model", "EXAMPLE"]
 
@@ -63,8 +62,8 @@ def example_model(f=sine) -> GeneratorModel:
     return GeneratorModel.checked(2, EXAMPLE["h_beta"], EXAMPLE["H_theta"], None, f)
 
 
-class GeneratorPlant(Block):
-    """The discrete plant (1)-(2); one :meth:`advance` of length ``Ts`` is one sample.
+class GeneratorPlant(SampledBlock):
+    """The discrete plant (1)-(2), updated at the instants ``k Ts``.
 
     Parameters
     ----------
@@ -77,7 +76,7 @@ class GeneratorPlant(Block):
     x0 : array_like, shape (n,)
         Initial state.
     Ts : float
-        Sample period (s): the only communication step accepted.
+        Sample period (s).
 
     Ports: input ``u``; outputs ``y``, ``x`` (n), ``beta``, ``theta`` (n) and,
     when ``r > 0``, ``delta`` (n).
@@ -99,6 +98,7 @@ class GeneratorPlant(Block):
         self.output_sizes = {"y": 1, "x": model.n, "beta": 1, "theta": model.n}
         if r:
             self.output_sizes["delta"] = model.n
+        self._init_sampling(self.input_sizes)
 
     def outputs(self, t: float, inputs: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
         beta, theta, delta = self.model.coefficients(self.xi)
@@ -107,9 +107,11 @@ class GeneratorPlant(Block):
             out["delta"] = delta
         return out
 
-    def advance(self, t: float, h: float, inputs: Mapping[str, Segment]) -> None:
+    def sample_period(self) -> float:
+        return self.Ts
+
+    def sample(self, t_k: float, inputs: Mapping[str, np.ndarray]) -> None:
         """``x(k+1) = A x(k) + D(u(k), y(k)) xi(k)``, ``xi(k+1) = Gamma xi(k)`` with ``u(k) = u(t_k)``."""
-        require_sample_step(h, self.Ts)
-        u = float(finite_signal("u", inputs["u"].start)[0])
+        u = float(finite_signal("u", inputs["u"])[0])
         x_next = self.A @ self.x + self.model.input_matrix(u, self.x[0]) @ self.xi
         self.x, self.xi = x_next, self.Gamma @ self.xi

@@ -3,7 +3,8 @@
 The true state is an output too, so estimation errors ``x - x_hat`` can be
 computed.  A continuous step is integrated exactly for an input that is held or linear
 over the step (:class:`~observers.integrators.LinearPropagator`); a discrete plant (sample
-time ``dt``) takes the samples a step covers, ``u[k]`` the input at ``t_k``.
+time ``dt``) is updated at the instants ``t_k = k dt`` a step contains, ``u[k]`` the input at ``t_k``
+(:class:`~observers.sampling.SampledBlock`: any communication step).
 """
 
 from __future__ import annotations
@@ -12,15 +13,16 @@ from typing import Mapping
 
 import numpy as np
 
-from obsfmu.observers.block import Block, Segment
+from obsfmu.observers.block import Segment
 from obsfmu.observers.checks import as_vector
-from obsfmu.observers.integrators import DEFAULT_SUBSTEP_BUDGET, LinearPropagator, require_budget, sample_count
+from obsfmu.observers.integrators import DEFAULT_SUBSTEP_BUDGET, LinearPropagator, require_budget
 from obsfmu.observers.lti_model import StateSpace
+from obsfmu.observers.sampling import SampledBlock
 
 __all__ = ["LTIPlant"]
 
 
-class LTIPlant(Block):
+class LTIPlant(SampledBlock):
     """LTI plant with initial state ``x0``.
 
     Ports: input ``u`` (m); outputs ``y`` (p) and ``x`` (n).  ``A`` may be a whole system
@@ -38,6 +40,8 @@ class LTIPlant(Block):
         self.input_sizes = {"u": self.model.m}
         self.output_sizes = {"y": self.model.p, "x": self.model.n}
         self._propagator = None if self.model.discrete else LinearPropagator(self.model.A, self.model.B)
+        if self.model.discrete:
+            self._init_sampling(self.input_sizes)
 
     def outputs(self, t: float, inputs: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
         y = self.model.C @ self.x
@@ -50,7 +54,10 @@ class LTIPlant(Block):
         if self._propagator is not None:
             self.x = self._propagator.step(self.x, h, u.start, u.slope)
             return
-        A, B, T, x = self.model.A, self.model.B, self.model.dt, self.x
-        for k in range(sample_count(h, T, self.substep_budget)):
-            x = A @ x + B @ (u.start + (k * T) * u.slope)
-        self.x = x
+        super().advance(t, h, inputs)
+
+    def sample_period(self) -> float:
+        return self.model.dt
+
+    def sample(self, t_k: float, inputs: Mapping[str, np.ndarray]) -> None:
+        self.x = self.model.A @ self.x + self.model.B @ inputs["u"]

@@ -105,8 +105,8 @@ def block_of(definition: FmuDefinition):
 
 register("generator-plant", "Discrete plant of paper 000: `x(k+1) = A x(k) + e_n beta(k) u(k) + theta(k) o f(y(k)) "
          "+ delta(k)`, `y = x_1`, `A` the shift matrix; `beta = h_beta xi_beta`, `theta = H_theta xi_theta`, "
-         "`delta = H_delta xi_delta`, each generator `xi(k+1) = (Gamma0 + gamma e_1^T) xi(k)`. One step = one "
-         "sample (the step must be `Ts`). Input `u`; outputs `y`, `x`, `beta`, `theta` (and `delta`).",
+         "`delta = H_delta xi_delta`, each generator `xi(k+1) = (Gamma0 + gamma e_1^T) xi(k)`. Sampled at "
+         "`t = k Ts` whatever the communication step (a step that divides `Ts` samples exactly). Input `u`; outputs `y`, `x`, `beta`, `theta` (and `delta`).",
          (_TS,) + _structure_fields(True, "") + (
              _CONSTANTS,
              Field("gamma_beta", "vector", "coefficients of Gamma_beta = Gamma0 + gamma_beta e_1^T (l entries)",

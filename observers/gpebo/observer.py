@@ -1,7 +1,7 @@
 r"""Discrete adaptive observer of paper 000 (GPEBO + DREM), as a block.
 
-One :meth:`GpeboObserver.advance` is one sample ``k`` (the step must be ``Ts``)
-and uses ``u(k)``, ``y(k)``, the input values at the step start:
+The observer processes sample ``k`` at the instant ``t_k = k Ts`` (any communication step:
+:class:`~observers.sampling.SampledBlock`) from ``u(k)``, ``y(k)``, the inputs at ``t_k``:
 
 1. *Generator coefficients.*  Row ``(zeta(k), rho(k))`` of the input-output
    regression (16) (:func:`~observers.gpebo.regression.regression_for`: the example's own
@@ -51,12 +51,12 @@ from typing import Mapping
 
 import numpy as np
 
-from obsfmu.observers.block import Block, Segment
 from obsfmu.observers.checks import ParameterError, as_vector, finite_signal, require_positive
 from obsfmu.observers.estimation import DelayExtension, DiscreteDREM
 
+from ..sampling import SampledBlock
 from .filters import GpeboFilters
-from .model import GeneratorModel, require_sample_step
+from .model import GeneratorModel
 from .regression import regression_for
 
 __all__ = ["GpeboObserver"]
@@ -68,7 +68,7 @@ def _residual(z: float, row: np.ndarray, estimate: np.ndarray) -> float:
     return abs(z - float(row @ estimate)) / scale if scale > 0 else 0.0
 
 
-class GpeboObserver(Block):
+class GpeboObserver(SampledBlock):
     r"""Adaptive observer of paper 000 for a plant of its class: ``gamma``, ``eta = xi(t0)`` and ``x``.
 
     Parameters
@@ -150,6 +150,7 @@ class GpeboObserver(Block):
         self.restart_time = 0.0
         self.residuals = np.ones(p)   #: a-priori relative residuals of the last p rows of the gamma regression
         self.input_sizes = {"u": 1, "y": 1}
+        self._init_sampling(self.input_sizes)
         self.output_sizes = {"x_hat": n, "gamma_hat": len(names), "eta_hat": N, "beta_hat": 1, "theta_hat": n,
                              "excited": 1, "nu_gamma": 1, "nu_eta": 1, "restart_time": 1,
                              "excitation": 1, "converged": 1}
@@ -200,15 +201,17 @@ class GpeboObserver(Block):
                 "excitation": np.array([min(abs(self.gamma_drem.delta), abs(self.eta_drem.delta))]),
                 "converged": np.array([float(self.converged)])}
 
-    def advance(self, t: float, h: float, inputs: Mapping[str, Segment]) -> None:
-        """Process sample ``k`` (``u(k)``, ``y(k)`` = input values at the step start)."""
-        require_sample_step(h, self.Ts)
-        u = float(finite_signal("u", inputs["u"].start)[0])
-        y = float(finite_signal("y", inputs["y"].start)[0])
+    def sample_period(self) -> float:
+        return self.Ts
+
+    def sample(self, t_k: float, inputs: Mapping[str, np.ndarray]) -> None:
+        """Process sample ``k`` (``u(k)``, ``y(k)``: the inputs latched at ``t_k``)."""
+        u = float(finite_signal("u", inputs["u"])[0])
+        y = float(finite_signal("y", inputs["y"])[0])
         self.model.nonlinearity(y)  # a bad f(y) is refused before anything changes
         saved = self.get_state()
         try:
-            self._sample(t, u, y)
+            self._sample(t_k, u, y)
         except Exception:
             self.set_state(saved, check=False)
             raise

@@ -57,8 +57,17 @@ def test_a_discrete_plant_steps_sample_by_sample_as_a_hand_loop():
             uj = math.cos(t) + (j * 0.1) * 2.0
             x = [3.7 * x[0] * (1 - x[0]) + 0.01 * uj, 0.5 * x[1] + x[0]]
         np.testing.assert_allclose(plant.x, x, rtol=1e-14, atol=1e-15)
-    with pytest.raises(SignalError, match="sample_time: a step of a discrete block covers whole samples"):
-        plant.advance(4.0, 0.15, {"u": Segment.hold([0.0])})
+    # any step (issue 36): [4, 4.15) latches u at 4.0 and 4.1, [4.15, 4.4) at 4.2 and 4.3, each from its own line;
+    # the update of t_k is applied when t_(k+1) is reached
+    def sample(x, uj):
+        return [3.7 * x[0] * (1 - x[0]) + 0.01 * uj, 0.5 * x[1] + x[0]]
+    plant.advance(4.0, 0.15, {"u": Segment(np.array([0.3]), np.array([-1.0]))})
+    x = sample(x, 0.3)                                         # the instant 4.0, applied at 4.1; 4.1 pending
+    np.testing.assert_allclose(plant.x, x, rtol=1e-14, atol=1e-15)
+    plant.advance(4.15, 0.25, {"u": Segment(np.array([0.7]), np.array([4.0]))})
+    for uj in (0.3 - 0.1, 0.7 + 0.05 * 4.0, 0.7 + 0.15 * 4.0):  # 4.1 (latched in the step before), 4.2, 4.3
+        x = sample(x, uj)
+    np.testing.assert_allclose(plant.x, x, rtol=1e-14, atol=1e-15)
 
 
 def test_feedthrough_exactly_when_the_output_reads_the_input():

@@ -1,12 +1,11 @@
 """Kinds for paper 000: the generator-driven discrete plant and the GPEBO + DREM observer.
 
-Both are *discrete* blocks: one communication step is one sample, its length
-must be the parameter ``Ts`` (other steps are refused with a logged error and
-fmi2Discard), and each input is taken at the step start, ``u(k) = u(t_k)``.
-With the project's master that is what ``<port>_interpolation`` 1 and 2 give
-(the segment's start value); under ``hold`` (0) the value set before
-``doStep`` is used, so the producer must not have stepped yet (Jacobi order,
-or Gauss-Seidel with the producer after this FMU).
+Both are *discrete* blocks updated at the instants ``t_k = k Ts`` (the parameter ``Ts``), whatever the
+communication step (:class:`observers.sampling.SampledBlock`): several samples in a long step, none in
+a short one, the state held in between; each input is taken at ``t_k``, ``u(k) = u(t_k)`` -- its value
+at the step start when ``t_k`` is a communication point (their DefaultExperiment steps one ``Ts``).  Under
+``hold`` (0) the value set before ``doStep`` is used, so the producer must not have stepped yet (Jacobi
+order, or Gauss-Seidel with the producer after this FMU).
 """
 
 from __future__ import annotations
@@ -23,8 +22,8 @@ from .diagnostics import GPEBO_CONTRACT, contract_parameters, contract_ports, co
 
 __all__ = ["generator_plant_definition", "gpebo_observer_definition"]
 
-_SAMPLING = ("one communication step = one sample: the step must equal Ts (other steps are refused); "
-             "inputs are taken at the step start, u(k) = u(k Ts)")
+_SAMPLING = ("sampled at t = k Ts whatever the communication step (state held between samples); "
+             "inputs are taken at the instants, u(k) = u(k Ts)")
 
 
 @register("generator-plant")
@@ -75,7 +74,7 @@ def generator_plant_definition(model_name: str, *, gamma_beta=EXAMPLE["gamma_bet
     x0 = np.asarray(x0, dtype=float)
     n = x0.size
     parameters = [
-        _scalar("Ts", Ts, "sample period: the only communication step accepted", "s"),
+        _scalar("Ts", Ts, "sample period: the block samples at t = k Ts", "s"),
         Parameter.of("gamma_beta", gamma_beta, "coefficients of Gamma_beta = Gamma0 + gamma_beta e1^T"),
         Parameter.of("gamma_theta", gamma_theta, "coefficients of Gamma_theta = Gamma0 + gamma_theta e1^T"),
         Parameter.of("xi_beta0", xi_beta0, "initial state of the beta generator"),
@@ -100,7 +99,6 @@ def generator_plant_definition(model_name: str, *, gamma_beta=EXAMPLE["gamma_bet
         inputs=[Port("u", 1, "plant input u(k), taken at the step start", scalar=True)],
         outputs=outputs,
         options={"f": f},
-        variable_step=False,  # one step = one sample of length Ts
     )
 
 
@@ -141,7 +139,7 @@ def gpebo_observer_definition(model_name: str, *, Ts: float = 1.0, k_gamma: floa
                                     f"eta = xi(t0) by GPEBO filters + DREM, x_hat = phi_x eta_hat; {_SAMPLING}; "
                                     "outputs are one-sample predictions from y(0..k-1)"),
         parameters=[
-            _scalar("Ts", Ts, "sample period: the only communication step accepted", "s"),
+            _scalar("Ts", Ts, "sample period: the block samples at t = k Ts", "s"),
             _scalar("k_gamma", k_gamma, "gain k_i of Statement 2 for sigma (rows normalised, Delta^2 <= 1)"),
             _scalar("k_eta", k_eta, "gain k_i of Statement 2 for eta"),
             Parameter.of("gamma_hat0", gamma_hat0, f"initial [{coefficients}] (nonzero)"),
@@ -169,5 +167,4 @@ def gpebo_observer_definition(model_name: str, *, Ts: float = 1.0, k_gamma: floa
             Port("restart_time", 1, "time of the last restart of the GPEBO filters", "s", scalar=True),
         ] + contract_ports(GPEBO_CONTRACT),
         options=_observer_options(f, gamma_unknown),
-        variable_step=False,  # one step = one sample of length Ts
     )

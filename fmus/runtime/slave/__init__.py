@@ -95,6 +95,7 @@ class BlockSlave(Variables, BlockOfParameters, Stepping, FmuStates, ModelDescrip
         self._numerics = numerics_context()              # where entry points run (numpy errors ignored)
         self._feedthrough = True                         # the block's, once it exists
         self._bad: dict[str, float] = {}                 # input (or der(input)) element -> refused value
+        self._sampling_noted = False                     # the warning of a sample instant inside a step: given
         self._snapshot: tuple[dict, Leaves] | None = None   # the block's state now, checked (rollback point)
         self._last_inputs = {}                          # port -> (its value, the time it belongs to)
         self._derivatives: dict[str, np.ndarray] = {}  # first input derivatives for the next step

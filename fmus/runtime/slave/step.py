@@ -213,7 +213,17 @@ class Stepping:
         self._time = t + h
         self._snapshot = None if tree is None else (tree, leaves)
         self._outputs_cache = outputs
+        if not self._sampling_noted and getattr(block, "inexact_instant", None) is not None:
+            self._note_inexact_sampling(block.inexact_instant, t, h)
         return True
+
+    def _note_inexact_sampling(self, instant: float, t: float, h: float) -> None:
+        """Once: a discrete block's sample instant fell inside a step (observers.sampling)."""
+        self._sampling_noted = True
+        self.log(f"sample instant t = {instant:.9g} lies inside the communication step [{t:.9g}, {t + h:.9g}]: "
+                 f"the block samples its inputs there from the step's input line, exact only when every sample "
+                 f"instant is a communication point (a step that divides the sample time)",
+                 Fmi2Status.warning)
 
     def _write_outputs(self, plan: BatchPlan, outputs: dict) -> None:
         """The block's ``outputs`` after a step into the plan's ``outputs`` vector (in the checked step, before

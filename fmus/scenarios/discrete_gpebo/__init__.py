@@ -146,4 +146,5 @@ CLAIM = (
 
 SCENARIO = paper_scenario(
     SYSTEM_FILE, "discrete-gpebo", summarize=summarize, plot=plot, claim=CLAIM, measure=MEASURE,
-    not_adaptive="its plant and observer are discrete: they take steps of exactly one sample period Ts")
+    not_adaptive="its plant and observer are discrete: their outputs jump at the sample instants, which step "
+                 "doubling cannot estimate an error for (use a fixed step that divides Ts)")

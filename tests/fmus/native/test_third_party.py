@@ -132,7 +132,7 @@ def test_every_fmi2_fmu_passes_the_compliance_checker(fmucheck, every_fmu, tmp_p
     assert len(every_fmu) >= 17
 
 
-GPEBO = ("gpebo_source", "gpebo_plant", "gpebo_observer")  #: FMUs that refuse any step but their sample time
+GPEBO = ("gpebo_source", "gpebo_plant", "gpebo_observer")  #: discrete FMUs: they sample at k Ts at any step
 
 
 def gpebo_paths(fixture, request) -> tuple[float, float, dict]:
@@ -142,17 +142,19 @@ def gpebo_paths(fixture, request) -> tuple[float, float, dict]:
     return scenario.stop_time, scenario.step, {model: fmus[model][1] for model in GPEBO}
 
 
-def test_fmucheck_takes_the_stop_time_of_the_default_experiment(fmucheck, request, tmp_path):
+def test_fmucheck_with_its_defaults_runs_the_discrete_fmus(fmucheck, request, tmp_path):
     """fmuCheck 2.0.3 reads startTime and stopTime of the DefaultExperiment, not its stepSize: its step is the stop
-    time over ``-n`` points (500 by default, ``prepare_time_step_info`` in src/Common/fmuChecker.c), so the GPEBO
-    FMUs (1 s steps only) run with ``-n`` alone and no ``-h``/``-s``."""
+    time over 500 points (``prepare_time_step_info`` in src/Common/fmuChecker.c), 0.08 s for the GPEBO FMUs of
+    Ts = 1 s.  They refused it (issue 36: 2 of 20 FMUs failed fmuCheck's defaults); sampled at k Ts at any step,
+    they run it, state held between the instants."""
     stop, step, paths = gpebo_paths("every_fmu", request)
     for model, path in paths.items():
-        completed = run_tool([fmucheck, "-n", round(stop / step), "-o", tmp_path / f"{model}.csv", path], tmp_path)
+        completed = run_tool([fmucheck, "-o", tmp_path / f"{model}.csv", path], tmp_path)
         report = completed.stdout + completed.stderr
         assert completed.returncode == 0 and "\t0 Error(s)" in report, report[-2000:]
-        times = read_csv(tmp_path / f"{model}.csv")[1][:, 0]
-        np.testing.assert_allclose(times, np.arange(round(stop / step) + 1) * step, rtol=0, atol=1e-9)
+        rows = read_csv(tmp_path / f"{model}.csv")[1]
+        assert len(rows) >= 490 and abs(rows[-1, 0] - stop) < 0.1 and np.all(np.diff(rows[:, 0]) > 0)
+        assert np.all(np.isfinite(rows))      # (fmuCheck's CSV skips a row now and then: 0.8 s is missing)
 
 
 @pytest.mark.parametrize("fixture", ["every_fmu", "every_fmu3"])

@@ -130,9 +130,14 @@ def test_plant_refuses_bad_configuration_and_other_steps():
         GeneratorPlant(model, **{**good, "Ts": 0.0})
     with pytest.raises(ParameterError, match="H_theta: expected 2 rows"):
         GeneratorModel.checked(2, [1, 0], [[1, 0]])
+    plant, whole = GeneratorPlant(model, **good), GeneratorPlant(model, **good)
+    plant.advance(0.0, 0.5, {"u": Segment.hold([1.0])})          # sampled at t = 0, updated at t = 1 (issue 36)
+    np.testing.assert_array_equal(plant.x, [0.0, 0.0])
+    plant.advance(0.5, 0.5, {"u": Segment.hold([7.0])})          # no instant in [0.5, 1): u(0) = 1 was latched
+    whole.advance(0.0, 1.0, {"u": Segment.hold([1.0])})
+    np.testing.assert_array_equal(plant.x, whole.x)
+    np.testing.assert_array_equal(plant.xi, whole.xi)
     plant = GeneratorPlant(model, **good)
-    with pytest.raises(ParameterError, match="step must equal Ts = 1 s; got h = 0.5 s"):
-        plant.advance(0.0, 0.5, {"u": Segment.hold([1.0])})
     with pytest.raises(SignalError, match="u: non-finite"):
         plant.advance(0.0, 1.0, {"u": Segment.hold([np.inf])})
     bad = GeneratorPlant(GeneratorModel.checked(2, [1, 0], [[1, 0], [0, 0]], None, lambda y: np.log(y)),
@@ -225,8 +230,8 @@ def test_observer_state_is_restored_after_a_refused_sample(monkeypatch):
     x, *_ = plant_data(u)
     _, observer = observe(u[:20], x[:20, 0])
     before = observer.get_state()
-    with pytest.raises(ParameterError, match="step must equal Ts"):
-        observer.advance(20.0, 2.0, {"u": Segment.hold([u[20]]), "y": Segment.hold([x[20, 0]])})
+    with pytest.raises(SignalError, match="y: non-finite"):
+        observer.advance(20.0, 1.0, {"u": Segment.hold([u[20]]), "y": Segment.hold([np.nan])})
     np.testing.assert_array_equal(observer.get_state()["window"], before["window"])
 
     def fail(*args):

@@ -76,7 +76,7 @@ def test_parameters_and_units_in_the_model_description(fmus):
     description = read_model_description(str(fmus["pendulum"]))
     variables = {v.name: v for v in description.modelVariables}
     assert {name for name, v in variables.items() if v.causality == "parameter"} == \
-        {"g", "l", "c", "x0[1]", "x0[2]", "max_substep", "substep_budget", "u_interpolation"}
+        {"g", "l", "c", "x0[1]", "x0[2]", "max_substep", "rtol", "atol", "substep_budget", "u_interpolation"}
     assert (variables["g"].unit, variables["x[2]"].unit, variables["y"].unit, variables["u"].unit) == \
         ("m/s2", "rad/s", "rad", "rad/s2")
     assert not description.outputs[0].dependencies                         # h does not read u
@@ -113,11 +113,11 @@ def test_a_nan_at_run_time_is_a_discarded_step_naming_the_output(fmus):
         in probe.messages()
 
 
-def _refused_step(path, h: float) -> str:
-    """The log of an instance of ``path`` whose first step, of length ``h``, is discarded."""
+def _log_of_steps(path, h: float, count: int) -> str:
+    """The log of an instance of ``path`` that takes ``count`` steps of length ``h``, all accepted."""
     probe = Probe(path, "discrete")
     try:
-        assert probe.step(h) == DISCARD
+        assert [probe.step(h) for _ in range(count)] == [OK] * count
     finally:
         probe.free()
     return probe.messages()
@@ -132,8 +132,11 @@ def test_a_discrete_expression_plant_steps_whole_samples_as_a_hand_loop(fmus):
         x = 3.7 * x * (1 - x) + 0.01 * 0.5
     np.testing.assert_allclose(result["x[1]"], expected, rtol=1e-14, atol=1e-15)
     np.testing.assert_allclose(result["y[2]"], 3.7 * np.array(expected), rtol=1e-14)
-    assert "sample_time: a step of a discrete block covers whole samples of T = 0.1; h = 0.15 is 1.5 samples" \
-        in _refused_step(fmus["logistic"], 0.15)
+    finer = simulate(fmus["logistic"], 2.0, 0.025, u=0.5)           # four steps per sample: held in between
+    np.testing.assert_allclose(finer["x[1]"][::8], expected, rtol=1e-14, atol=1e-15)
+    assert "lies inside" not in _log_of_steps(fmus["logistic"], 0.025, 8)   # every instant a communication point
+    assert "sample instant t = 0.1 lies inside the communication step [0, 0.15]" \
+        in _log_of_steps(fmus["logistic"], 0.15, 2)                    # taken, with a warning (issue 36)
 
 
 def test_a_discrete_lti_plant_steps_whole_samples_as_a_hand_loop(fmus):
@@ -145,8 +148,10 @@ def test_a_discrete_lti_plant_steps_whole_samples_as_a_hand_loop(fmus):
             expected.append(x)
         x = A @ x + B
     np.testing.assert_allclose(np.column_stack([result["x[1]"], result["x[2]"]]), expected, rtol=1e-13, atol=1e-15)
-    assert "sample_time: a step of a discrete block covers whole samples of T = 0.1; h = 0.25 is 2.5 samples" \
-        in _refused_step(fmus["dlti"], 0.25)
+    finer = simulate(fmus["dlti"], 2.0, 0.05, u=1.0)
+    np.testing.assert_allclose(np.column_stack([finer["x[1]"], finer["x[2]"]])[::4], expected, rtol=1e-13,
+                               atol=1e-15)
+    assert "sample instant t = 0.1 lies inside the communication step [0, 0.25]" in _log_of_steps(fmus["dlti"], 0.25, 2)
     names = {v.name for v in read_model_description(str(fmus["dlti"])).modelVariables}
     assert {"sample_time", "substep_budget"} <= names
 
