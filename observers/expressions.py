@@ -7,10 +7,12 @@ over the time ``t``, the vectors ``x``, ``u``, ``p`` (indexed from 1, as the FMU
     -c * x[2] - k * x[1] - alpha * x[1] ** 3 + u[1]
     where(x[1] > 0, sqrt(x[1]), 0)
 
-Grammar: numbers; ``+ - * / ** %``, unary ``-`` and ``+``; comparisons ``< <= > >= == !=`` (true is 1);
-``and``, ``or``, ``not``; the functions ``sin cos tan exp log sqrt abs sign tanh min max where``.
-Anything else -- attributes, strings, other calls, slices, lambdas, ``a if c else b`` -- is refused,
-naming the place (file, line, column) and the token.
+Grammar: numbers; ``+ - * / ** %``, unary ``-`` and ``+``; ``^`` is a power too (``y^3``, with the
+precedence of ``**``: ``-x^2 = -(x^2)``, ``2^3^2 = 2^9``); comparisons ``< <= > >= == !=`` (true is 1);
+``and``, ``or``, ``not``; the functions ``sin cos tan asin acos atan atan2(y, x) sinh cosh tanh exp log
+log10 sqrt abs sign min(a, b, ...) max(a, b, ...) clip(x, low, high) where(condition, a, b)``.
+Anything else -- attributes, strings, other calls, slices, lambdas, ``a if c else b``, ``#`` comments --
+is refused, naming the place (file, line, column) and the token.
 
 The text is parsed with :mod:`ast` and checked node by node against that grammar; the checked tree
 is turned into a tree of small Python closures over floats, once.  Nothing of the user's text is
@@ -125,18 +127,51 @@ def _periodic(function):
     return lambda value: function(value) if math.isfinite(value) else math.nan
 
 
-#: name -> (number of arguments, function of floats); ``where`` is handled apart (it is lazy)
+def _unit_interval(function):
+    """``asin``, ``acos``: NaN outside [-1, 1] (as numpy), not a ValueError."""
+    return lambda value: function(value) if -1.0 <= value <= 1.0 else math.nan
+
+
+def _growing(function):
+    """``sinh``, ``cosh``: inf on overflow (as numpy), not an OverflowError."""
+    def guarded(value):
+        try:
+            return function(value)
+        except OverflowError:
+            return math.copysign(math.inf, value) if function is math.sinh else math.inf
+    return guarded
+
+
+def _log10(value: float) -> float:
+    return math.log10(value) if value > 0 else (-math.inf if value == 0 else math.nan)
+
+
+def _clip(value: float, low: float, high: float) -> float:
+    """``value`` limited to ``[low, high]`` (numpy's clip: ``min(max(value, low), high)``)."""
+    return min(max(value, low), high)
+
+
+def _extreme(function):
+    """``min``, ``max`` of two or more numbers; NaN if any is NaN (as numpy's minimum, maximum)."""
+    return lambda *values: math.nan if any(v != v for v in values) else function(values)
+
+
+#: name -> (number of arguments, function of floats); a negative number -n: at least n;
+#: ``where`` is handled apart (it is lazy)
 FUNCTIONS: dict[str, tuple[int, Callable]] = {
     "sin": (1, _periodic(math.sin)), "cos": (1, _periodic(math.cos)), "tan": (1, _tan),
-    "exp": (1, _exp), "log": (1, _log), "sqrt": (1, _sqrt), "abs": (1, abs), "sign": (1, _sign),
-    "tanh": (1, math.tanh), "min": (2, min), "max": (2, max), "where": (3, None),
+    "asin": (1, _unit_interval(math.asin)), "acos": (1, _unit_interval(math.acos)), "atan": (1, math.atan),
+    "atan2": (2, math.atan2), "sinh": (1, _growing(math.sinh)), "cosh": (1, _growing(math.cosh)),
+    "tanh": (1, math.tanh), "exp": (1, _exp), "log": (1, _log), "log10": (1, _log10), "sqrt": (1, _sqrt),
+    "abs": (1, abs), "sign": (1, _sign), "min": (-2, _extreme(min)), "max": (-2, _extreme(max)),
+    "clip": (3, _clip), "where": (3, None),
 }
 
 _BINARY = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul, ast.Div: operator.truediv,
            ast.Pow: operator.pow, ast.Mod: operator.mod}
 _COMPARE = {ast.Lt: operator.lt, ast.LtE: operator.le, ast.Gt: operator.gt, ast.GtE: operator.ge,
             ast.Eq: operator.eq, ast.NotEq: operator.ne}
-_HINTS = {ast.BitXor: "use ** for powers", ast.IfExp: "use where(condition, a, b)",
+_HINTS = {ast.IfExp: "use where(condition, a, b)",
           ast.Attribute: "parameters are named plainly (k, not p.k)", ast.Constant: "only numbers are allowed"}
 
 
@@ -207,7 +242,10 @@ def _check_text(text, source: Source) -> str:
         raise ExpressionError(f"{source.field}: the expression holds a control character")
     if not text.strip():
         raise ExpressionError(f"{source.field}: the expression is empty")
-    return text
+    if "#" in text:
+        raise ExpressionError(f"{source.field}: '#' (character {text.index('#') + 1}) is not part of an expression; "
+                              f"a comment goes in the file, after the closing quote")
+    return text.replace("^", "**")            # y^3: a power, with the precedence of ** (not Python's xor)
 
 
 def _parse(text: str, source: Source) -> ast.expr:
@@ -258,7 +296,10 @@ class _Compiler:
         value = node.value
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise self.refuse(node, "only numbers are allowed")
-        number = float(value)
+        try:
+            number = float(value)
+        except OverflowError:                 # a whole number of 309 digits or more
+            raise self.refuse(node, "the number is beyond the range of a float (about 1.8e308)") from None
         if not math.isfinite(number):
             raise self.refuse(node, "the number is not finite")
         return lambda t, x, u, p: number
@@ -342,8 +383,10 @@ class _Compiler:
         if name not in FUNCTIONS:
             raise self.refuse(node.func, f"unknown function (allowed: {', '.join(FUNCTIONS)})")
         count, function = FUNCTIONS[name]
-        if node.keywords or len(node.args) != count or any(isinstance(a, ast.Starred) for a in node.args):
-            raise self.refuse(node, f"{name} takes {count} argument{'s' if count > 1 else ''}")
+        wrong = len(node.args) < -count if count < 0 else len(node.args) != count
+        if node.keywords or wrong or any(isinstance(a, ast.Starred) for a in node.args):
+            takes = f"at least {-count} arguments" if count < 0 else f"{count} argument{'s' if count > 1 else ''}"
+            raise self.refuse(node, f"{name} takes {takes}")
         args = [self.build(argument, depth) for argument in node.args]
         if name == "where":
             condition, if_true, if_false = args
@@ -351,8 +394,10 @@ class _Compiler:
         if count == 1:
             (argument,) = args
             return lambda t, x, u, p: float(function(argument(t, x, u, p)))
-        first, second = args
-        return lambda t, x, u, p: float(function(first(t, x, u, p), second(t, x, u, p)))
+        if len(args) == 2:
+            first, second = args
+            return lambda t, x, u, p: float(function(first(t, x, u, p), second(t, x, u, p)))
+        return lambda t, x, u, p: float(function(*(argument(t, x, u, p) for argument in args)))
 
 
 def _compiled(text: str, names: Names, source: Source) -> tuple[Evaluator, set[str]]:

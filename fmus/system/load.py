@@ -189,8 +189,19 @@ def _compares(data: dict) -> list[dict]:
     return compares
 
 
+#: characters that reorder text on screen (Trojan Source, CVE-2021-42574): refused anywhere in a file
+BIDI_CONTROLS = frozenset("\u061c\u200e\u200f\u202a\u202b\u202c\u202d\u202e\u2066\u2067\u2068\u2069")
+_EXPRESSION = re.compile(r"(\S+?)\[(\d+)\] \(line (\d+), column \d+ of the expression\)")
+
+
 def _line_of(field: str, locator: Locator) -> int | None:
-    """The line a message's field is on: the key, the i-th connection, or the component of ``a.u``."""
+    """The line a message's field is on: the key, the i-th connection, the component of ``a.u``, or the line of
+    an expression (``components.plant.f[2] (line 1, column 8 of the expression)``: its string's line)."""
+    expression = _EXPRESSION.fullmatch(field)
+    if expression:
+        key, index, line = expression[1], int(expression[2]), int(expression[3])
+        start = locator.item_line(key, index) or locator.line(key)
+        return None if start is None else start + line - 1
     first = field.split(" ")[0]
     index = re.fullmatch(r"connections\[(\d+)\]", first)
     if index:
@@ -239,6 +250,9 @@ def _parse(text: str, path: str, folder: Path, locator: Locator) -> SystemSpec:
             if unicodedata.category(character) == "Cc" and character not in "\t\r":
                 raise ParameterError(f"{path}:{number}:{column}: control character U+{ord(character):04X}; a "
                                      "system file is plain text")
+            if character in BIDI_CONTROLS:
+                raise ParameterError(f"{path}:{number}:{column}: bidirectional control character "
+                                     f"U+{ord(character):04X}; it makes the file read otherwise than it is")
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:

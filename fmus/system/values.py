@@ -32,9 +32,13 @@ def _is_number(value) -> bool:
 def _number(where: str, value) -> float:
     if not _is_number(value):
         raise ParameterError(f"{where}: expected a number, got {_shown(value)}")
-    if not math.isfinite(value):
+    try:
+        number = float(value)
+    except OverflowError:                     # a whole number of 309 digits or more (TOML integers are unbounded)
+        raise ParameterError(f"{where}: {_shown(value)} is beyond the range of a float (about 1.8e308)") from None
+    if not math.isfinite(number):
         raise ParameterError(f"{where}: expected a finite number, got {value}")
-    return float(value)
+    return number
 
 
 def _shown(value) -> str:
@@ -49,8 +53,13 @@ def check_text(where: str, value, *, lines: bool = False, limit: int = MAX_TEXT)
     if len(value) > limit:
         raise ParameterError(f"{where}: {len(value)} characters, more than the limit of {limit}")
     for character in value:
-        if unicodedata.category(character) == "Cc" and not (lines and character in "\t\n\r"):
+        category = unicodedata.category(character)
+        if category == "Cc" and not (lines and character in "\t\n\r"):
             raise ParameterError(f"{where}: holds the control character U+{ord(character):04X}")
+        if category == "Cf":         # U+202E and the other bidi overrides, zero-width characters: text that reads
+            raise ParameterError(f"{where}: holds the invisible format character U+{ord(character):04X} (a "
+                                 f"bidirectional override or zero-width character: the text would read otherwise "
+                                 f"than it is)")
     return value
 
 

@@ -14,6 +14,8 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.signal import place_poles
 
+from obsfmu.observers.checks import ParameterError
+
 ROOT = Path(__file__).resolve().parents[3]
 
 # the motor: L di/dt = -R i - k w + V, J dw/dt = k i - b w, dtheta/dt = w (R 2, L 0.5, k 0.1, J 0.02, b 0.2)
@@ -370,3 +372,31 @@ def test_a_file_step_long_against_its_fastest_dynamics_warns_naming_them(capsys)
     assert "a step of at most 0.0058 s keeps it below 0.01" in line
     check_step(scenario, stop_time=10.0, step=2e-3, order="gauss-seidel", coupling="hold")   # h |lambda| / 3 = 0.02
     assert "coupling error of up to about 0.02" in capsys.readouterr().err
+
+
+BIG = "1" + "0" * 400                         # a TOML integer beyond a float (issue 37: OverflowError traceback)
+LTV = (ROOT / "examples" / "ltv_mass_spring_damper.toml").read_text()
+FOUND_BY_ISSUES_36_37 = {
+    "401-digit stop time": (_bad(GOOD, "stop_time = 2.0", f"stop_time = {BIG}"),
+                            f"f.toml:{line_of(GOOD, 'stop_time')}: experiment.stop_time: 1000"),
+    "401-digit matrix entry": (_bad(GOOD, "A = [[-4.0, -0.2", f"A = [[{BIG}, -0.2"),
+                               f"f.toml:{line_of(GOOD, 'A = [[')}: components.plant.A[1][1]: 1000"),
+    "bidi override escaped in a text": (_bad(GOOD, 'description = "DC', 'description = "\\u202eDC'),
+                                        "f.toml:2: description: holds the invisible format character U+202E"),
+    "bidi override in the file": (_bad(GOOD, 'description = "DC', 'description = "\u202eDC'),
+                                  "f.toml:2:16: bidirectional control character U+202E"),
+    "expression of another kind: its line": (LTV.replace('f = "y**3"', 'f = "y**3 + os.system(1)"', 1),
+                                             f"f.toml:{line_of(LTV, 'f = ')}: components.plant.f[1] (line 1, column 8"),
+    "comment inside an expression": (EXPRESSION.replace("os.system(1)", "1  # the spring"),
+                                     f"f.toml:{line_of(EXPRESSION, 'os.system')}: components.pendulum.f[2]: '#' (character 17) is not part of"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(FOUND_BY_ISSUES_36_37))
+def test_what_the_audit_found_is_one_line_naming_the_line(case):
+    """In process (the CLI's one-line, rc 2 path is the one above): the field, the file line, no traceback."""
+    from obsfmu.fmus.system.load import parse_system
+    text, expected = FOUND_BY_ISSUES_36_37[case]
+    with pytest.raises(ParameterError) as refused:
+        parse_system(text, "f.toml")
+    assert expected in str(refused.value) and "\n" not in str(refused.value), str(refused.value)
