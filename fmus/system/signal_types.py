@@ -7,7 +7,11 @@ the signal once; the numeric ones are FMU parameters (``--set``/``--vary`` work 
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
+
+from obsfmu.observers.checks import ParameterError
 
 from ..runtime.kinds import noise, sources
 from .schema import Context, Field, register
@@ -59,7 +63,10 @@ _SOURCES = {
         Field("values", "vector", "the values there", unit="(signal)", example="[0, 1, 0]"),
         Field("interpolation", "choice", "between break points", "linear", choices=("linear", "previous")))),
     "csv": ("`y(t)`: a column of a CSV file, read when the FMU is built (the FMU holds the numbers)", (
-        Field("path", "string", "the CSV file (relative to the system file's folder)", example='"input.csv"'),
+        Field("path", "string", "the CSV file: a regular file of at most 64 MiB, relative to the system file's "
+              "folder and inside it (a path leaving it only with outside_folder = true)", example='"input.csv"'),
+        Field("outside_folder", "boolean", "allow a path outside the system file's folder (absolute, or with ..)",
+              False, example="true"),
         Field("column", "string", "the column's header", example='"u"'),
         Field("time_column", "string", "the header of the time column", "time", example='"t"'),
         Field("interpolation", "choice", "between rows", "linear", choices=("linear", "previous")))),
@@ -76,7 +83,7 @@ def _source_define(family: str):
     def define(model_name: str, values: dict, context: Context) -> list:
         arguments = {f.name: values[f.name] for f in TYPES_FIELDS[family]}
         if family == "csv":
-            arguments["path"] = context.folder / arguments["path"]
+            arguments["path"] = _csv_path(context, arguments["path"], arguments.pop("outside_folder"))
         if family == "multisine" and arguments["phases"] is None:
             del arguments["phases"]
         frequencies = [arguments[key] for key in _FREQUENCIES.get(family, ())]
@@ -85,6 +92,17 @@ def _source_define(family: str):
                          f"{' and '.join(_FREQUENCIES[family])} (2 pi f)")
         return [function(model_name, **arguments, description=values["description"])]
     return define
+
+
+def _csv_path(context: Context, path: str, outside: bool) -> Path:
+    """The CSV file of a ``csv`` source, relative to the system file's folder and, unless ``outside``, inside it
+    (a system file from someone else names no file of yours: ``/etc/shadow``, ``../../.ssh/id_rsa``)."""
+    folder = Path(context.folder).resolve()
+    resolved = (folder / path).resolve()
+    if not outside and not resolved.is_relative_to(folder):
+        raise ParameterError(f"{context.prefix}path: {path!r} is outside the system file's folder {folder}; give "
+                             f"outside_folder = true to read it")
+    return resolved
 
 
 TYPES_FIELDS = {family: fields + (_UNIT,) for family, (_, fields) in _SOURCES.items()}

@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import csv
+import io
 import math
-from pathlib import Path
+import os
+import stat
 
 import numpy as np
 
@@ -68,6 +70,15 @@ class Table(Source):
         return np.where(i >= 0, slopes[np.maximum(i, 0)], 0.0)
 
 
+def _columns(header: list[str]) -> str:
+    """The header's names for a message, only when it looks like one (comma-separated short names): the first
+    line of an arbitrary file is not quoted."""
+    names = [name for name in header if name]
+    if len(names) >= 2 and all(len(name) <= 40 and name.isprintable() for name in names):
+        return "columns: " + ", ".join(names[:20]) + (", ..." if len(names) > 20 else "")
+    return "its first line is not a header of comma-separated column names"
+
+
 class CsvColumn(Table):
     """A column of a CSV file with a header row, against its ``time_column``, as a :class:`Table`.
 
@@ -88,6 +99,8 @@ class CsvColumn(Table):
     """
 
     not_state = ("path", "column")
+    #: the largest file read (a column of a CSV file of 64 MiB: millions of rows)
+    MAX_BYTES = 64 * 2 ** 20
 
     def __init__(self, path, column: str, time_column: str = "time", interpolation: str = "linear"):
         self.path, self.column = str(path), column
@@ -96,17 +109,13 @@ class CsvColumn(Table):
                                                               f"{self.path}: column {column!r}"))
 
     def _read(self, time_column: str) -> tuple[list[float], list[float]]:
-        try:
-            with Path(self.path).open(newline="", encoding="utf-8-sig") as file:
-                rows = list(csv.reader(file))
-        except (OSError, UnicodeDecodeError, csv.Error) as exc:
-            raise ParameterError(f"path: cannot read {self.path!r}: {exc}") from exc
+        rows = list(csv.reader(io.StringIO(self._text(), newline="")))
         if not rows:
             raise ParameterError(f"path: {self.path} is empty (expected a header row)")
         header = [name.strip() for name in rows[0]]
         for name, what in ((time_column, "time_column"), (self.column, "column")):
             if name not in header:
-                raise ParameterError(f"{what}: {name!r} is not a column of {self.path} (columns: {', '.join(header)})")
+                raise ParameterError(f"{what}: {name!r} is not a column of {self.path} ({_columns(header)})")
         picked = [(header.index(time_column), time_column), (header.index(self.column), self.column)]
         times, values, previous = [], [], None
         for line, row in enumerate(rows[1:], start=2):
@@ -122,6 +131,28 @@ class CsvColumn(Table):
         if not times:
             raise ParameterError(f"path: {self.path} has a header but no data rows")
         return times, values
+
+    def _text(self) -> str:
+        """The file's text: a regular file (not a device, FIFO or folder) of at most :attr:`MAX_BYTES`, read with
+        that bound (a file growing meanwhile is cut there and refused).  Messages quote nothing of it."""
+        try:
+            status = os.stat(self.path)
+            if not stat.S_ISREG(status.st_mode):
+                raise ParameterError(f"path: {self.path} is not a regular file (a device, FIFO or folder cannot be "
+                                     f"read as a CSV file)")
+            if status.st_size > self.MAX_BYTES:
+                raise ParameterError(f"path: {self.path} has {status.st_size} bytes, more than the limit of "
+                                     f"{self.MAX_BYTES // 2 ** 20} MiB")
+            with open(self.path, "rb") as file:
+                data = file.read(self.MAX_BYTES + 1)
+        except OSError as exc:
+            raise ParameterError(f"path: cannot read {self.path}: {exc.strerror or type(exc).__name__}") from None
+        if len(data) > self.MAX_BYTES:
+            raise ParameterError(f"path: {self.path} grew beyond the limit of {self.MAX_BYTES // 2 ** 20} MiB while read")
+        try:
+            return data.decode("utf-8-sig")
+        except UnicodeDecodeError as exc:
+            raise ParameterError(f"path: {self.path} is not UTF-8 text (byte {exc.start + 1})") from None
 
     def _cell(self, row: list[str], index: int, name: str, line: int) -> float:
         where = f"{self.path}: row {line}, column {name!r}"

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import os
 
 import numpy as np
 import pytest
@@ -138,3 +139,40 @@ def test_the_derivative_of_a_smooth_source_makes_the_linear_input_of_a_step_exac
     finally:
         slave.terminate()
         slave.freeInstance()
+
+
+# ------------------------------------------------------------------ csv sources a stranger's file cannot abuse (issue 37)
+def _csv_file(path: str, extra: str = "") -> str:
+    return (f'name = "c"\nconnections = []\n[experiment]\nstop_time = 1.0\nstep = 0.1\n[components.src]\n'
+            f'kind = "csv"\npath = "{path}"\ncolumn = "u"\n{extra}')
+
+
+@pytest.mark.parametrize("path, extra, message", [
+    ("/dev/zero", "outside_folder = true", "/dev/zero is not a regular file"),     # grew to 3.85 GB before
+    ("fifo", "", "is not a regular file"),                                         # blocked forever before
+    ("/etc/passwd", "", "'/etc/passwd' is outside the system file's folder"),
+    ("../x.csv", "", "'../x.csv' is outside the system file's folder"),
+    ("big.csv", "", "more than the limit of 64 MiB"),                              # a sparse file: no disk used
+    ("secret.txt", "", "its first line is not a header of comma-separated column names"),
+])
+def test_a_csv_source_reads_regular_files_in_its_folder_within_a_limit_and_quotes_none(tmp_path, path, extra,
+                                                                                        message):
+    from obsfmu.fmus.system.load import parse_system
+    os.mkfifo(tmp_path / "fifo")
+    with open(tmp_path / "big.csv", "wb") as big:
+        big.truncate(65 * 2 ** 20)
+    (tmp_path / "secret.txt").write_text("root:$6$hash-not-to-be-quoted:19000:0:99999:7:::\n")
+    with pytest.raises(ParameterError) as refused:
+        parse_system(_csv_file(path, extra), "c.toml", tmp_path)
+    text = str(refused.value)
+    assert message in text and "hash-not-to-be-quoted" not in text and "\n" not in text, text
+
+
+def test_a_csv_file_outside_the_folder_is_read_when_the_file_says_so(tmp_path):
+    from obsfmu.fmus.system.load import parse_system
+    (tmp_path / "data.csv").write_text("time,u\n0,1\n1,3\n")
+    (tmp_path / "sub").mkdir()
+    spec = parse_system(_csv_file("../data.csv", "outside_folder = true"), "c.toml", tmp_path / "sub")
+    definition, = spec.components["src"].definitions
+    values = next(p for p in definition.parameters if p.name == "values")
+    np.testing.assert_array_equal(np.ravel(values.value), [1.0, 3.0])
