@@ -214,10 +214,12 @@ class Campaign:
                     measure_for(scenario, self.time_metric, self.error_metric), samples)
 
     def _samples(self, scenario: str, settings: dict) -> list[Sample]:
-        axes = {n: s.values() for n, s in self.specs.items() if not isinstance(s, Distribution)}
-        count = math.prod(len(v) for v in axes.values()) * (self.samples or 1)
+        sizes = [s.count if isinstance(s, Grid) else len(s.items) for s in self.specs.values()
+                 if not isinstance(s, Distribution)]
+        count = math.prod(sizes) * (self.samples or 1)          # before any grid is made
         if count > MAX_SAMPLES:
             raise CampaignError(f"vary: {count} samples is more than {MAX_SAMPLES}; use fewer points")
+        axes = {n: s.values() for n, s in self.specs.items() if not isinstance(s, Distribution)}
         draws = {n: s.draw(rng_for(self.seed, n), self.samples) for n, s in self.specs.items()
                  if isinstance(s, Distribution)}
         base = {"scenario": scenario, "settings": settings, "fixed": {k: self.fixed[k] for k in sorted(self.fixed)}}

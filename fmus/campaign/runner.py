@@ -56,6 +56,47 @@ def default_workers() -> int:
         return os.cpu_count() or 1
 
 
+def max_workers() -> int:
+    """The most worker processes of a LocalCluster: 4 per CPU (a million were accepted and ran out of memory)."""
+    return 4 * (os.cpu_count() or 1)
+
+
+#: seconds to wait for a scheduler's first answer
+SCHEDULER_TIMEOUT = 10.0
+
+
+def check_scheduler(address: str) -> None:
+    """A :class:`CampaignError` naming ``--scheduler`` unless ``address`` answers as a Dask scheduler does: on a
+    new connection it sends its handshake at once, a frame whose first 8 bytes are its length (little-endian).
+    Nothing is sent to it.  (An HTTP server at that port waits for a request: Dask then hung, or read the
+    server's reply as a frame length and asked for 3 EiB.)"""
+    from urllib.parse import urlsplit
+
+    parts = urlsplit(address if "://" in address else "tcp://" + address)
+    try:
+        port = parts.port
+    except ValueError:
+        port = None
+    if parts.scheme != "tcp" or not parts.hostname or port is None:
+        raise CampaignError(f"--scheduler: {address!r} is not a scheduler address (tcp://HOST:PORT)")
+    try:
+        with socket.create_connection((parts.hostname, port), timeout=SCHEDULER_TIMEOUT) as connection:
+            connection.settimeout(SCHEDULER_TIMEOUT)
+            first = b""
+            while len(first) < 8:
+                more = connection.recv(8 - len(first))
+                if not more:
+                    break
+                first += more
+    except socket.timeout:
+        raise CampaignError(f"--scheduler: {address} sent no Dask handshake within {SCHEDULER_TIMEOUT:g} s: not a "
+                            f"Dask scheduler (its port is usually 8786; the dashboard's 8787 is HTTP)") from None
+    except OSError as exc:
+        raise CampaignError(f"--scheduler: cannot connect to {address}: {exc.strerror or exc}") from None
+    if len(first) < 8 or not 0 < int.from_bytes(first, "little") < 2 ** 20:
+        raise CampaignError(f"--scheduler: {address} does not speak Dask's protocol (not a Dask scheduler)")
+
+
 @contextmanager
 def _client(workers: int | None, scheduler: str | None, client, dashboard: str | None = None, log=None):
     """A dask client: the given one, one connected to ``scheduler``, or a new LocalCluster's (its dashboard
@@ -183,6 +224,11 @@ def run_campaign(campaign: Campaign | Plan, *, workers: int | None = None, sched
         raise CampaignError("dashboard: only for the local cluster; an existing scheduler serves its own")
     if report_only and out is None:
         raise CampaignError("report_only: needs the campaign directory (out)")
+    if workers is not None and not 1 <= workers <= max_workers():
+        raise CampaignError(f"--workers: {workers} worker processes on {os.cpu_count() or 1} CPUs; at most "
+                            f"{max_workers()} (4 per CPU; each is a Python process of 100+ MB)")
+    if scheduler is not None:
+        check_scheduler(scheduler)               # before anything is written
     plan = campaign if isinstance(campaign, Plan) else campaign.plan()
     store = Store(out) if out is not None else None
     memory: list[dict] = []

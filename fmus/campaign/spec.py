@@ -30,6 +30,8 @@ _GRID = re.compile(rf"^\s*({_NUMBER})\s*:\s*({_NUMBER})\s*:\s*([^:\s]+)\s*$", re
 _LIST = re.compile(rf"^\s*({_NUMBER}(?:\s*,\s*{_NUMBER})*)\s*$", re.IGNORECASE)
 _RANDOM = re.compile(rf"^\s*([a-z]+)\s*\(\s*({_NUMBER})\s*,\s*({_NUMBER})\s*\)\s*$", re.IGNORECASE)
 DISTRIBUTIONS = ("uniform", "normal", "loguniform")
+#: most points of one grid (a sweep's whole sample limit, fmus.campaign.design.MAX_SAMPLES)
+GRID_LIMIT = 1_000_000
 
 
 def _finite(name: str, text: str, what: str, value: float) -> float:
@@ -105,6 +107,9 @@ def parse_spec(name: str, text: str) -> Spec:
             raise CampaignError(f"{name}={text}: the grid's count must be a whole number, got {match[3]!r}") from None
         if count < 1:
             raise CampaignError(f"{name}={text}: the grid's count must be at least 1, got {count}")
+        if count > GRID_LIMIT:                 # refused before any array of it exists
+            raise CampaignError(f"{name}={text}: {count} grid points, more than a sweep's limit of {GRID_LIMIT} "
+                                f"samples; use fewer points")
         if count > 1 and lo == hi:
             raise CampaignError(f"{name}={text}: lo equals hi, so the {count} grid points would coincide")
         if count == 1 and lo != hi:

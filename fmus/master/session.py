@@ -32,6 +32,8 @@ from .wiring import unconnected_inputs, wire
 __all__ = ["Session", "cosimulate", "open_instance", "ORDERS", "COUPLINGS"]
 
 ORDERS = ("gauss-seidel", "jacobi", "adaptive")
+#: most communication points of a fixed-step run (1e9 steps of a few microseconds: hours), checked before it starts
+MAX_POINTS = 1e9
 COUPLINGS = ("linear", "hold")
 
 
@@ -69,6 +71,11 @@ def check_run_settings(stop_time, step, order, start_time, coupling, tolerance) 
         raise SimulationError(f"start_time, stop_time: must be finite, got {start_time!r}, {stop_time!r}")
     if not stop_time > start_time:
         raise SimulationError(f"stop_time: must be after start_time {start_time}, got {stop_time}")
+    points = (stop_time - start_time) / step
+    if order != "adaptive" and not points <= MAX_POINTS:
+        raise SimulationError(f"step: {step:g} from {start_time:g} to stop_time {stop_time:g} is {points:.3g} "
+                              f"communication points, more than the limit of {MAX_POINTS:.0e} (a longer step or a "
+                              f"shorter run)")
 
 
 def _require_inputs(missing: list[str]) -> None:

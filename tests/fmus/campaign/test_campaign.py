@@ -254,3 +254,50 @@ def test_report_only_builds_the_table_summary_and_figures_from_stored_rows(build
     assert (tmp_path / "samples.csv").read_text().count("\n") == 4
     for stem in ("convergence", "error_vs_inputs", "convergence_vs_inputs"):
         assert (tmp_path / f"{stem}.png").stat().st_size > 1000 and (tmp_path / f"{stem}.svg").stat().st_size > 1000
+
+
+# ----------------------------------------------------------------------------- limits before any work (issue 37)
+def test_limits_are_checked_before_anything_is_allocated_or_started(tmp_path):
+    """A grid of 1e9 points allocated 7.45 GiB before the sample limit was checked; a million workers were
+    accepted; a run of 1e600 communication points ended in an OverflowError traceback."""
+    import tracemalloc
+
+    from obsfmu.fmus.campaign.runner import max_workers, run_campaign
+    from obsfmu.fmus.master import SimulationError
+    from obsfmu.fmus.master.session import check_run_settings
+    tracemalloc.start()
+    with pytest.raises(CampaignError, match=r"1000000000 grid points, more than a sweep's limit of 1000000"):
+        parse_spec("observer.x_hat0[1]", "0:1:1000000000")
+    assert tracemalloc.get_traced_memory()[1] < 10 * 2 ** 20          # peak: nothing of the grid was made
+    tracemalloc.stop()
+    campaign = Campaign("ship", {"observer.x_hat0[1]": parse_spec("observer.x_hat0[1]", "0:1:1000"),
+                                 "observer.x_hat0[2]": parse_spec("observer.x_hat0[2]", "0:1:1001")})
+    with pytest.raises(CampaignError, match="vary: 1001000 samples is more than 1000000"):
+        run_campaign(campaign, workers=1)
+    with pytest.raises(CampaignError, match=f"--workers: 1000000 worker processes .* at most {max_workers()}"):
+        run_campaign(campaign, workers=1_000_000)
+    with pytest.raises(SimulationError, match="step: 1e-300 from 0 to stop_time 1e.300 is inf communication points"):
+        check_run_settings(1e300, 1e-300, "gauss-seidel", 0.0, "linear", 1e-6)
+
+
+def test_a_scheduler_address_that_is_no_dask_scheduler_is_one_line(tmp_path):
+    """An HTTP server at the address: Dask hung, or asked for 3.07 EiB.  Refused after the handshake timeout,
+    before anything is written."""
+    import http.server
+    import threading
+
+    from obsfmu.fmus.campaign import runner
+    server = http.server.HTTPServer(("127.0.0.1", 0), http.server.SimpleHTTPRequestHandler)
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    try:
+        runner.SCHEDULER_TIMEOUT, saved = 1.0, runner.SCHEDULER_TIMEOUT
+        address = f"tcp://127.0.0.1:{server.server_address[1]}"
+        with pytest.raises(CampaignError, match=f"--scheduler: {address} sent no Dask handshake within 1 s"):
+            runner.run_campaign(Campaign("ship", {"observer.x_hat0[1]": parse_spec("observer.x_hat0[1]", "0:1:2")}),
+                                scheduler=address, out=tmp_path / "out")
+        with pytest.raises(CampaignError, match="is not a scheduler address"):
+            runner.check_scheduler("http://127.0.0.1")
+    finally:
+        runner.SCHEDULER_TIMEOUT = saved
+        server.shutdown()
+    assert not (tmp_path / "out").exists()
