@@ -143,9 +143,13 @@ def expm(M: np.ndarray) -> np.ndarray:
     if not np.all(np.isfinite(A)):
         return np.full_like(A, np.nan)
     identity = np.eye(A.shape[0])
-    A2 = A @ A
-    A4 = A2 @ A2
-    A6 = A4 @ A2
+    with np.errstate(over="ignore", invalid="ignore"):
+        A2 = A @ A
+        A4 = A2 @ A2
+        A6 = A4 @ A2
+    if not np.all(np.isfinite(A6)):              # the scaling needs these norms: beyond double precision
+        raise SignalError(f"expm: the powers of a matrix of 1-norm {_norm1(A):.3g} overflow double precision (a "
+                          f"step far too long for the dynamics: take a shorter step)")
     d4, d6 = _norm1(A4) ** 0.25, _norm1(A6) ** (1 / 6)
     eta = max(d4, d6)
     for m in (3, 5):
@@ -209,7 +213,15 @@ class LinearPropagator:
             M[:n, :n] = self.A
             M[:n, n:n + m] = self.B
             M[n:n + m, n + m:] = np.eye(m)
-            E = expm(M * h)
+            with np.errstate(over="ignore", invalid="ignore"):
+                M *= h
+            try:
+                if not np.all(np.isfinite(M)):
+                    raise SignalError("A h overflows double precision")
+                E = expm(M)
+            except SignalError as exc:
+                raise SignalError(f"step h = {h:g}: exp(A h) of x' = A x + B u (1-norm of A: {_norm1(self.A):.3g}) "
+                                  f"overflows double precision; take a shorter communication step") from exc
             cached = (E[:n, :n], E[:n, n:n + m], E[:n, n + m:])
             if len(self._cache) >= self.CACHE_SIZE:
                 self._cache.clear()

@@ -132,10 +132,13 @@ class PolynomialInputs:
                                   f"({start}, slope {slope}, at t = {t} over h = {h})")
             times, values = self._continued(name, t, start)
             times, values = times[-self.degree:], values[-self.degree:]
+            nodes = tuple(round((time - t) / h, 12) for time in times) + (1.0,)
+            if len(set(nodes)) < len(nodes):     # a step so long that the samples coincide at its scale: restart
+                times, values = (t,), (start,)
             if len(times) == 1:
                 polynomials[name] = InputPolynomial((start, slope), h)
             else:
-                rows = _monomial_map(tuple(round((time - t) / h, 12) for time in times) + (1.0,))
+                rows = _monomial_map(nodes)
                 points = values + (end,)
                 polynomials[name] = InputPolynomial(tuple(
                     sum(m * v for m, v in zip(row, points)) / h ** k for k, row in enumerate(rows)), h)

@@ -203,6 +203,26 @@ def test_a_huge_step_returns_at_once_and_changes_nothing_when_refused(kind_fmus,
     probe.free()
 
 
+@pytest.mark.parametrize("kind", KINDS)
+def test_a_step_of_1e300_is_taken_or_refused_saying_why(live, kind):
+    """Issue 37.9: ``fmi2DoStep(h = 1e300)`` was a Discard logging a bare ``ValueError: cannot convert float NaN
+    to integer`` (the matrix exponential of A h) or ``LinAlgError: Singular matrix`` (an LTV block's input
+    history collapsed at the scale of the step).  Now the message names the step and what to do."""
+    probe, step, _ = live(kind)
+    before, mark = probe.state_bytes(), len(probe.log)
+    status = probe.step(1e300)
+    assert status in (OK, DISCARD), probe.messages(mark)
+    if status == OK:                                   # the sources: a function of time
+        assert kind in WITHOUT_INPUTS | {"state-feedback"} and np.all(np.isfinite(probe.outputs()))
+        assert probe.restore_bytes(before) == OK
+        return
+    message = probe.messages(mark)
+    assert "h = 1e+300" in message and ("shorter" in message or "substep_budget" in message), message
+    assert not any(bare in message for bare in ("ValueError:", "LinAlgError:", "cannot convert", "Singular")), message
+    probe.assert_unchanged(before, "stepFailed")
+    assert probe.restore_bytes(before) == OK
+
+
 def test_the_issue_step_of_a_million_seconds_on_the_pendulum_observer(build_dir):
     """Issue 13: ``fmi2DoStep(h = 1e6)`` on the state-affine-pendulum observer never returned."""
     from obsfmu.fmus.scenarios import ensure_fmus, get
