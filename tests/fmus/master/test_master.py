@@ -148,3 +148,24 @@ def test_a_session_keeps_its_extracted_fmus_while_other_runs_prune_the_cache(shi
     cache._prune(folder, keep=folder / "newer-0")
     assert not any((folder / name).exists() for name in used), "closed, its entries are the oldest: pruned"
     assert not [entry.name for entry in folder.iterdir() if ".pruned." in entry.name]
+
+
+def test_an_fmu_whose_guid_its_binary_does_not_carry_is_one_error_naming_the_instance(ship_fmus, tmp_path,
+                                                                                     monkeypatch):
+    """Issue 37.6: an extracted FMU with another GUID ended in fmpy's bare ``Exception: Failed to instantiate
+    model`` traceback; now a SimulationError (one line, rc 2 on the CLI) naming the instance, with the FMU's own
+    log line and the folder it came from."""
+    import re
+
+    from obsfmu.fmus.master import cache
+
+    monkeypatch.setattr(cache, "EXTRACT_CACHE", tmp_path / "extracted")
+    folder = cache.extracted(ship_fmus["ship_plant"])
+    description = folder / "modelDescription.xml"
+    description.write_text(re.sub(r'guid="[^"]*"', 'guid="{deadbeef-0000-0000-0000-000000000000}"',
+                                  description.read_text()))
+    with pytest.raises(SimulationError) as raised:
+        cosimulate(ship_system(ship_fmus), 0.01, 0.001)
+    message = str(raised.value)
+    assert message.startswith("plant: the FMU failed to instantiate (") and "\n" not in message, message
+    assert "{deadbeef-0000-0000-0000-000000000000} is not this FMU's" in message and str(folder) in message
