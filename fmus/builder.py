@@ -34,7 +34,7 @@ from xml.etree.ElementTree import tostring
 from . import fmi3, native
 from .bundle import PROJECT, package_init, relocate
 from .cli.stopping import signals_held
-from .output import file_mode
+from .output import OutputError, file_mode
 from .runtime.definition import FmuDefinition, valid_identifier
 from .runtime.slave import versions
 
@@ -248,9 +248,13 @@ def build_fmu(definition: FmuDefinition, out_dir: Path | str, extra_modules=(), 
                     archive.write(bridge, bridges[platform])
             target = out_dir / f"{model}.fmu"
             os.replace(partial, target)
+            _write_record(target, sources)
+        except OSError as exc:           # a full disk: the write names no file
+            if exc.filename:
+                raise
+            raise OutputError(f"{out_dir / f'{model}.fmu'}: cannot be written ({exc.strerror or exc})") from None
         finally:
             partial.unlink(missing_ok=True)
-        _write_record(target, sources)
         return target
 
 

@@ -125,3 +125,22 @@ def test_a_second_build_of_every_scenario_fmu_builds_nothing(every_fmu, build_di
     again = runs.build_all(build_dir)
     assert set(again) == set(before)
     assert {path: path.stat().st_mtime_ns for path in before} == before
+
+
+def test_a_full_disk_in_the_build_folder_is_one_line_naming_the_fmu(tmp_path, monkeypatch, capsys):
+    """Issue 37.8: ``--build-dir`` on a full disk ended in ``obsfmu: error: No space left on device`` naming no
+    path (the zip's write carries no file name).  Now the FMU's path, exit 2, and no partial file left."""
+    import errno
+    import zipfile
+
+    from obsfmu.fmus.cli import main as cli
+
+    def full(self, *args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device")
+    monkeypatch.setattr(zipfile.ZipFile, "writestr", full)
+    build = tmp_path / "build"
+    assert cli.main(["run", "ship", "--build-dir", str(build), "--stop-time", "0.01"]) == 2
+    error = capsys.readouterr().err.strip()
+    assert error.startswith("obsfmu: error: ") and "\n" not in error, error
+    assert error.endswith(".fmu: cannot be written (No space left on device)") and str(build) in error, error
+    assert not [p.name for p in build.iterdir() if p.name.startswith(".")]
