@@ -25,6 +25,7 @@ from pathlib import Path
 from .. import scenarios
 from ..system import resolve
 from ..master import COUPLINGS, ORDERS
+from ..master.session import check_run_settings
 from .errors import CampaignError
 from .measures import Measure, measure_for
 from .spec import Choice, Distribution, Grid, Spec, rng_for, spec_from_value
@@ -189,15 +190,6 @@ class Campaign:
     def plan(self) -> Plan:
         """Build/check the FMUs, check every name and value, and list the samples."""
         scenario = resolve(self.scenario)
-        fmus = scenarios.ensure_fmus(scenario, Path(self.build_dir))
-        descriptions = _model_variables(scenario, fmus)
-        for name in list(self.specs) + list(self.fixed):
-            _check_name(name, descriptions, scenario)
-        variables = {name: describe(name, descriptions) for name in list(self.specs) + list(self.fixed)}
-        for name, spec in self.specs.items():
-            _check_values(name, spec, variables[name])
-        for name, value in self.fixed.items():
-            _check_value(f"--set {name}", variables[name], value)
         settings = {
             "stop_time": float(scenario.stop_time if self.stop_time is None else self.stop_time),
             "step": float(scenario.step if self.step is None else self.step),
@@ -208,6 +200,17 @@ class Campaign:
             settings["tolerance"] = float(scenario.tolerance if self.tolerance is None else self.tolerance)
         elif scenario.ramp:
             settings["ramp"] = scenario.ramp     # its start-up ramp, as 'obsfmu run' (fmus.master.cosimulate)
+        check_run_settings(settings["stop_time"], settings["step"], settings["order"], 0.0, settings["coupling"],
+                           settings.get("tolerance", 1e-6))      # every sample's: refused once, before any build
+        fmus = scenarios.ensure_fmus(scenario, Path(self.build_dir))
+        descriptions = _model_variables(scenario, fmus)
+        for name in list(self.specs) + list(self.fixed):
+            _check_name(name, descriptions, scenario)
+        variables = {name: describe(name, descriptions) for name in list(self.specs) + list(self.fixed)}
+        for name, spec in self.specs.items():
+            _check_values(name, spec, variables[name])
+        for name, value in self.fixed.items():
+            _check_value(f"--set {name}", variables[name], value)
         samples = self._samples(scenario.name, settings)
         return Plan(self, scenario, settings, fmus, fmu_fingerprint(fmus.values()),
                     {name: variables[name] for name in self.specs},

@@ -16,13 +16,24 @@ from __future__ import annotations
 
 import os
 import time as wallclock
+from contextlib import contextmanager
 from pathlib import Path
 
 import pyarrow as pa
 import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 
-__all__ = ["Store", "load_rows", "rows_to_table", "STRING_COLUMNS"]
+from .errors import CampaignError
+
+try:
+    import fcntl
+except ImportError:                      # Windows: no lock (two sweeps into one folder still keep correct rows)
+    fcntl = None
+
+__all__ = ["Store", "load_rows", "rows_to_table", "STRING_COLUMNS", "LOCK"]
+
+#: the file of a campaign directory that the sweep writing into it locks (exclusive ``flock``, with its PID)
+LOCK = ".obsfmu-sweep.lock"
 
 STRING_COLUMNS = ("sample_id", "status", "reason", "worker", "fmu_set", "warnings", "invocation", "finished_at")
 BOOL_COLUMNS = ("converged",)
@@ -77,6 +88,32 @@ class Store:
     def __init__(self, out: Path | str):
         self.out = Path(out)
         self.directory = self.out / "samples"
+
+    @contextmanager
+    def exclusive(self):
+        """Hold the directory for one sweep: a second one writing into it at the same time ends at once with a
+        :class:`CampaignError` naming ``--out`` and the holder's PID (two sweeps compacting one dataset removed
+        each other's part files: the loser's error was a bare path).  The lock goes with its process (a
+        killed sweep leaves none: the next resumes)."""
+        self.out.mkdir(parents=True, exist_ok=True)
+        if fcntl is None:
+            yield self
+            return
+        descriptor = os.open(self.out / LOCK, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            try:
+                fcntl.flock(descriptor, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                holder = os.pread(descriptor, 32, 0).decode(errors="replace").strip()
+                holder = f" (PID {holder})" if holder.isdigit() else ""
+                raise CampaignError(f"--out {self.out}: another sweep{holder} is writing into this folder; wait "
+                                    f"for it to end (then rerun: its samples are reused) or choose another "
+                                    f"--out") from None
+            os.ftruncate(descriptor, 0)
+            os.pwrite(descriptor, f"{os.getpid()}\n".encode(), 0)
+            yield self
+        finally:
+            os.close(descriptor)         # closing drops the lock
 
     def parts(self) -> list[Path]:
         return sorted(self.directory.glob("part-*.parquet")) if self.directory.is_dir() else []

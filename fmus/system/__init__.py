@@ -81,12 +81,16 @@ def field_reference() -> str:
     from .load import COMPARE_FIELDS, EXPERIMENT_FIELDS, MAX_COMPONENTS, MAX_FILE_BYTES, TOP_FIELDS
     from .kinds import reference
     from .values import MAX_DIMENSION, MAX_ENTRIES, MAX_TEXT
+    from ..master.session import MAX_POINTS
+    from obsfmu.plants.sources.tables import CsvColumn
     limits = (f"A file of at most {MAX_FILE_BYTES // 2 ** 20} MiB, plain UTF-8 text without control characters; "
               f"at most {MAX_COMPONENTS} components and {MAX_CONNECTIONS} connections; matrices of at most "
               f"{MAX_DIMENSION} rows and columns (states, inputs, outputs), vectors of at most {MAX_ENTRIES} "
               f"entries; texts of at most {MAX_TEXT} characters; an expression of at most {MAX_LENGTH} characters "
-              f"nested at most {MAX_DEPTH} deep. Beyond a limit the file is refused at once, naming the field and "
-              "the limit.")
+              f"nested at most {MAX_DEPTH} deep; a run of at most {MAX_POINTS:.0e} communication points "
+              f"(stop_time / step with any master but the adaptive one; --step and --stop-time too); a `csv` "
+              f"source's file of at most {CsvColumn.MAX_BYTES // 2 ** 20} MiB. Beyond a limit the file is refused at "
+              "once, naming the field and the limit.")
     return reference({
         "Top level": ("The file's own fields, before any table.", TOP_FIELDS),
         "[experiment]": ("The run's defaults (`obsfmu run` options override them).", EXPERIMENT_FIELDS),

@@ -301,3 +301,34 @@ def test_a_scheduler_address_that_is_no_dask_scheduler_is_one_line(tmp_path):
         runner.SCHEDULER_TIMEOUT = saved
         server.shutdown()
     assert not (tmp_path / "out").exists()
+
+
+def test_a_second_sweep_into_the_same_out_ends_at_once_with_one_line(tmp_path, capsys):
+    """Issue 37.8: two identical sweeps into one --out compacted each other's part files away; the loser ended
+    with a bare path (pyarrow's FileNotFoundError) as its error.  Now the second one ends at once, naming --out
+    and the PID of the sweep writing there, exit 2; after the first ends the folder is free again."""
+    import os
+
+    out = tmp_path / "out"
+    with Store(out).exclusive():                           # the first sweep, still writing
+        code = cli.main(["sweep", "ship", "--vary", "observer.x_hat0[1]=0:1:2", "--workers", "1", "--out", str(out),
+                         "--no-plots", "--no-progress"])
+        error = capsys.readouterr().err.strip().splitlines()
+        assert code == 2 and error == [f"obsfmu: error: --out {out}: another sweep (PID {os.getpid()}) is writing "
+                                       f"into this folder; wait for it to end (then rerun: its samples are reused) "
+                                       f"or choose another --out"], error
+        assert not (out / "campaign.json").exists()        # nothing written by the loser
+    with Store(out).exclusive():                           # released when the first one ended
+        pass
+
+
+def test_a_sweep_of_too_many_communication_points_is_refused_once_before_anything_is_built(tmp_path, capsys):
+    """Issue 37.6: ``--step 1e-300 --stop-time 1e300`` made every sample a row with status error (after the
+    cluster started and the FMUs were built); now one line naming the step, exit 2, nothing written."""
+    out, build = tmp_path / "out", tmp_path / "build"
+    code = cli.main(["sweep", "ship", "--vary", "observer.x_hat0[1]=0:1:2", "--step", "1e-300", "--stop-time", "1e300",
+                     "--out", str(out), "--build-dir", str(build), "--no-plots"])
+    error = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(error) == 1 and error[0].startswith("obsfmu: error: step: 1e-300 from 0 to stop_time "
+                                                                 "1e+300 is inf communication points"), error
+    assert not out.exists() and not build.exists()
