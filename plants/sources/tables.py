@@ -79,6 +79,11 @@ def _columns(header: list[str]) -> str:
     return "its first line is not a header of comma-separated column names"
 
 
+def _cell_text(cell: str) -> str:
+    """A cell of the file for a message: escaped (repr) and at most 24 characters of it."""
+    return repr(cell) if len(cell) <= 24 else repr(cell[:24]) + f"... ({len(cell)} characters)"
+
+
 class CsvColumn(Table):
     """A column of a CSV file with a header row, against its ``time_column``, as a :class:`Table`.
 
@@ -161,7 +166,7 @@ class CsvColumn(Table):
         try:
             number = float(row[index])
         except ValueError:
-            raise ParameterError(f"{where}: expected a number, got {row[index]!r}") from None
+            raise ParameterError(f"{where}: expected a number, got {_cell_text(row[index])}") from None
         if not math.isfinite(number):
-            raise ParameterError(f"{where}: {row[index]!r} is not finite")
+            raise ParameterError(f"{where}: {_cell_text(row[index])} is not finite")
         return number

@@ -154,6 +154,9 @@ def _csv_file(path: str, extra: str = "") -> str:
     ("../x.csv", "", "'../x.csv' is outside the system file's folder"),
     ("big.csv", "", "more than the limit of 64 MiB"),                              # a sparse file: no disk used
     ("secret.txt", "", "its first line is not a header of comma-separated column names"),
+    ("folder", "", "folder is not a regular file"),
+    ("link.csv", "", "'link.csv' is outside the system file's folder"),                # a link leading out
+    ("cells.csv", "", "row 2, column 'u': expected a number, got 'abcdefghijklmnopqrstuvwx'... (48 characters)"),
 ])
 def test_a_csv_source_reads_regular_files_in_its_folder_within_a_limit_and_quotes_none(tmp_path, path, extra,
                                                                                         message):
@@ -162,6 +165,9 @@ def test_a_csv_source_reads_regular_files_in_its_folder_within_a_limit_and_quote
     with open(tmp_path / "big.csv", "wb") as big:
         big.truncate(65 * 2 ** 20)
     (tmp_path / "secret.txt").write_text("root:$6$hash-not-to-be-quoted:19000:0:99999:7:::\n")
+    (tmp_path / "folder").mkdir()
+    (tmp_path / "link.csv").symlink_to(tmp_path.parent / "elsewhere.csv")
+    (tmp_path / "cells.csv").write_text("time,u\n0,abcdefghijklmnopqrstuvwxyz-hash-not-to-be-quoted\n")
     with pytest.raises(ParameterError) as refused:
         parse_system(_csv_file(path, extra), "c.toml", tmp_path)
     text = str(refused.value)
