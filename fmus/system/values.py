@@ -46,8 +46,14 @@ def _shown(value) -> str:
     return text if len(text) <= 60 else text[:57] + "..."
 
 
+def _escaped(text: str) -> str:
+    """``text`` with its control and format characters as ``\\uXXXX`` (a message must read as it is)."""
+    return "".join(f"\\u{ord(c):04X}" if unicodedata.category(c) in ("Cc", "Cf") else c for c in text)
+
+
 def check_text(where: str, value, *, lines: bool = False, limit: int = MAX_TEXT) -> str:
     """A string without control characters (``lines``: tabs and newlines allowed) of at most ``limit``."""
+    where = _escaped(where)       # a key (a name) is part of where: it must not reorder the message
     if not isinstance(value, str):
         raise ParameterError(f"{where}: expected a text, got {_shown(value)}")
     if len(value) > limit:

@@ -400,3 +400,19 @@ def test_what_the_audit_found_is_one_line_naming_the_line(case):
     with pytest.raises(ParameterError) as refused:
         parse_system(text, "f.toml")
     assert expected in str(refused.value) and "\n" not in str(refused.value), str(refused.value)
+
+
+@pytest.mark.parametrize("character", ["202E", "200B", "00AD", "061C", "2066"])
+def test_a_name_with_a_format_character_is_refused_and_the_message_shows_it_escaped(character):
+    """Issue 37.9: U+202E (and every format character, category Cf: zero-width, soft hyphen, Arabic letter mark,
+    isolates) in a component's name, written as a TOML escape.  Refused, and the message -- which names the
+    field, and so the name -- carries none of them raw (it would read reversed in a terminal)."""
+    import unicodedata
+
+    from obsfmu.fmus.system.load import parse_system
+    text = _bad(GOOD, "[components.sensor]", f'[components."sen\\u{character}sor"]')
+    with pytest.raises(ParameterError) as refused:
+        parse_system(text, "f.toml")
+    message = str(refused.value)
+    assert f"components.sen\\u{character}sor: holds the invisible format character U+{character}" in message, message
+    assert not [c for c in message if unicodedata.category(c) in ("Cc", "Cf")] and "\n" not in message
