@@ -197,6 +197,9 @@ def _require_text(field: str, value) -> str:
             raise ParameterError(f"{field}: control character {character!r} at position {position + 1}; "
                                  "texts are written into the FMUs' XML, write them on one line without "
                                  "control characters")
+        if unicodedata.category(character) == "Cf":      # U+202E, zero-width: the text reads otherwise than it is
+            raise ParameterError(f"{field}: invisible format character U+{ord(character):04X} at position "
+                                 f"{position + 1} (a bidirectional override or zero-width character)")
     return value
 
 

@@ -139,7 +139,8 @@ def _build_refused(tmp_path, config: Path) -> str:
     ('name = "inj"\ndescription = "two\\nlines"', '["rad", "rad/s"]', "description: control character '\\n'"),
     ('name = "inj"', '["rad", "rad\\u007f/s"]', "plant.state_units[2]: control character '\\x7f'"),
     ('name = "x\\n"', '["rad", "rad/s"]', "name: expected an identifier (letters, digits, _), got 'x\\n'"),
-], ids=["control-character", "newline", "unit", "name-newline"])
+    ('name = "inj"', '["rad", "r\\u202Ead/s"]', "plant.state_units[2]: invisible format character U+202E at position 2"),
+], ids=["control-character", "newline", "unit", "name-newline", "bidi-override"])
 def test_a_bad_text_in_a_design_is_one_line_and_builds_nothing(tmp_path, head, units, field):
     assert field in _build_refused(tmp_path, _design(tmp_path, head=head, units=units))
 
