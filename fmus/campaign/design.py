@@ -146,10 +146,11 @@ class Campaign:
             raise CampaignError(f"--samples: must be a whole number >= 1, got {self.samples!r}")
         if isinstance(self.seed, bool) or int(self.seed) != self.seed or self.seed < 0:
             raise CampaignError(f"--seed: must be a whole number >= 0, got {self.seed!r}")
-        if not (isinstance(self.time_limit, (int, float)) and self.time_limit > 0 and math.isfinite(self.time_limit)):
+        if not (isinstance(self.time_limit, (int, float)) and self.time_limit > 0
+                and abs(self.time_limit) <= _LARGEST and math.isfinite(self.time_limit)):
             raise CampaignError(f"--time-limit: must be a positive number of seconds, got {self.time_limit!r}")
         for option, value in (("--stop-time", self.stop_time), ("--step", self.step)):
-            if value is not None and not (math.isfinite(value) and value > 0):
+            if value is not None and not (math.isfinite(_float(option, value)) and value > 0):
                 raise CampaignError(f"{option}: must be a positive number, got {value!r}")
         if self.master is not None and self.master not in ORDERS:
             raise CampaignError(f"--master: {self.master!r} is not one of {', '.join(ORDERS)}")
@@ -171,6 +172,7 @@ class Campaign:
             raise CampaignError(f"--config: {path} does not exist") from None
         except tomllib.TOMLDecodeError as exc:
             raise CampaignError(f"--config {path}: not valid TOML ({exc})") from None
+        _no_huge_integers(f"--config {path}", data)
         known = {f for f in cls.__dataclass_fields__}
         unknown = sorted(set(data) - known)
         if unknown:
@@ -255,9 +257,34 @@ def fmu_fingerprint(paths) -> str:
     return digest.hexdigest()[:12]
 
 
+def _no_huge_integers(where: str, value, key: str = "") -> None:
+    """A :class:`CampaignError` naming the key of the first TOML integer beyond a float (a 401-digit
+    ``stop_time`` ended in an OverflowError traceback)."""
+    if isinstance(value, dict):
+        for name, item in value.items():
+            _no_huge_integers(where, item, f"{key}.{name}" if key else str(name))
+    elif isinstance(value, list):
+        for index, item in enumerate(value, start=1):
+            _no_huge_integers(where, item, f"{key}[{index}]")
+    elif isinstance(value, int) and not isinstance(value, bool) and abs(value) > _LARGEST:
+        raise CampaignError(f"{where}: {key}: an integer of {len(str(abs(value)))} digits is beyond the range of a "
+                            f"float (about 1.8e308)")
+
+
+_LARGEST = int(float.fromhex("0x1.fffffffffffffp+1023"))
+
+
+def _float(option: str, value) -> float:
+    """``float(value)``; a :class:`CampaignError` naming ``option`` for an integer beyond a float."""
+    try:
+        return float(value)
+    except OverflowError:
+        raise CampaignError(f"{option}: {str(value)[:20]}... is beyond the range of a float") from None
+
+
 def _number(option: str, value) -> float:
     try:
-        number = float(value)
+        number = _float(option, value)
     except (TypeError, ValueError):
         raise CampaignError(f"{option}: {value!r} is not a number") from None
     if not math.isfinite(number):

@@ -138,6 +138,19 @@ def parse_spec(name: str, text: str) -> Spec:
                         f"or a,b,c, or uniform(lo, hi), normal(mean, std), loguniform(lo, hi)")
 
 
+def _float(value) -> float:
+    """``float(value)``; inf for an integer beyond a float (float() raised OverflowError)."""
+    try:
+        return float(value)
+    except OverflowError:
+        return float("inf") if value > 0 else float("-inf")
+
+
+def _shown(value) -> str:
+    text = str(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
 def _choice(name: str, text: str, items: list[float]) -> Choice:
     repeated = sorted({v for v in items if items.count(v) > 1})
     if repeated:
@@ -151,7 +164,7 @@ def spec_from_value(name: str, value) -> Spec:
         return parse_spec(name, value)
     if isinstance(value, (list, tuple)) and value and all(isinstance(v, (int, float)) and not isinstance(v, bool)
                                                          for v in value):
-        items = [_finite(name, str(value), "every list value", float(v)) for v in value]
+        items = [_finite(name, _shown(value), "every list value", _float(v)) for v in value]
         return _choice(name, str(value), items)
     raise CampaignError(f"vary.{name}: expected a SPEC string (e.g. \"uniform(0, 1)\", \"-3:3:7\") or an array of "
                         f"numbers, got {value!r}; a fixed value belongs in [set]")

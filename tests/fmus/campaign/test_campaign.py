@@ -332,3 +332,19 @@ def test_a_sweep_of_too_many_communication_points_is_refused_once_before_anythin
     assert code == 2 and len(error) == 1 and error[0].startswith("obsfmu: error: step: 1e-300 from 0 to stop_time "
                                                                  "1e+300 is inf communication points"), error
     assert not out.exists() and not build.exists()
+
+
+@pytest.mark.parametrize("entry, key", [("stop_time = {big}", "stop_time"), ("step = {big}", "step"),
+                                        ("time_limit = {big}", "time_limit"), ("seed = {big}", "seed"),
+                                        ('[set]\n"observer.x_hat0[2]" = {big}', "set.observer.x_hat0[2]")])
+def test_a_401_digit_integer_in_a_campaign_file_is_one_line_naming_its_key(tmp_path, capsys, entry, key):
+    """Issue 37.6: ``stop_time = <401 digits>`` in a campaign file ended in an OverflowError traceback."""
+    big = "1" * 401
+    config = tmp_path / "campaign.toml"
+    config.write_text(f'scenario = "ship"\n{entry.format(big=big)}\n[vary]\n"observer.x_hat0[1]" = [0, 1]\n')
+    assert cli.main(["sweep", "--config", str(config), "--out", str(tmp_path / "out")]) == 2
+    error = capsys.readouterr().err.strip().splitlines()
+    assert error == [f"obsfmu: error: --config {config}: {key}: an integer of 401 digits is beyond the range of a "
+                     f"float (about 1.8e308)"], error
+    with pytest.raises(CampaignError, match="beyond the range of a float|must be a finite number"):
+        Campaign("ship", {"observer.x_hat0[1]": [0, 10 ** 400]})
