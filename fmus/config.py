@@ -61,6 +61,7 @@ from obsfmu.observers.modal import (MAX_TRANSIENT_GROWTH, desired_poles, shifted
 from obsfmu.observers.standard_forms import FORMS
 
 from .runtime.definition import FmuDefinition, experiment, valid_identifier
+from .toml_numbers import huge_integer
 from .runtime.kinds.linear import feedback_definition, observer_definition, plant_definition
 
 if sys.version_info >= (3, 11):
@@ -144,6 +145,9 @@ def load_config(path: Path | str) -> dict:
     if not config:
         raise ParameterError(f"config {path}: the file is empty; a design needs at least name, [plant] "
                              "and [observer]")
+    huge = huge_integer(config)
+    if huge:
+        raise ParameterError(f"config {path}: {huge}")
     return config
 
 

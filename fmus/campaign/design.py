@@ -26,6 +26,7 @@ from .. import scenarios
 from ..system import resolve
 from ..master import COUPLINGS, ORDERS
 from ..master.session import check_run_settings
+from ..toml_numbers import LARGEST, huge_integer
 from .errors import CampaignError
 from .measures import Measure, measure_for
 from .spec import Choice, Distribution, Grid, Spec, rng_for, spec_from_value
@@ -147,7 +148,7 @@ class Campaign:
         if isinstance(self.seed, bool) or int(self.seed) != self.seed or self.seed < 0:
             raise CampaignError(f"--seed: must be a whole number >= 0, got {self.seed!r}")
         if not (isinstance(self.time_limit, (int, float)) and self.time_limit > 0
-                and abs(self.time_limit) <= _LARGEST and math.isfinite(self.time_limit)):
+                and abs(self.time_limit) <= LARGEST and math.isfinite(self.time_limit)):
             raise CampaignError(f"--time-limit: must be a positive number of seconds, got {self.time_limit!r}")
         for option, value in (("--stop-time", self.stop_time), ("--step", self.step)):
             if value is not None and not (math.isfinite(_float(option, value)) and value > 0):
@@ -172,7 +173,9 @@ class Campaign:
             raise CampaignError(f"--config: {path} does not exist") from None
         except tomllib.TOMLDecodeError as exc:
             raise CampaignError(f"--config {path}: not valid TOML ({exc})") from None
-        _no_huge_integers(f"--config {path}", data)
+        huge = huge_integer(data)
+        if huge:
+            raise CampaignError(f"--config {path}: {huge}")
         known = {f for f in cls.__dataclass_fields__}
         unknown = sorted(set(data) - known)
         if unknown:
@@ -255,23 +258,6 @@ def fmu_fingerprint(paths) -> str:
             for info in sorted(archive.infolist(), key=lambda i: i.filename):
                 digest.update(f"{info.filename}:{info.CRC}:{info.file_size};".encode())
     return digest.hexdigest()[:12]
-
-
-def _no_huge_integers(where: str, value, key: str = "") -> None:
-    """A :class:`CampaignError` naming the key of the first TOML integer beyond a float (a 401-digit
-    ``stop_time`` ended in an OverflowError traceback)."""
-    if isinstance(value, dict):
-        for name, item in value.items():
-            _no_huge_integers(where, item, f"{key}.{name}" if key else str(name))
-    elif isinstance(value, list):
-        for index, item in enumerate(value, start=1):
-            _no_huge_integers(where, item, f"{key}[{index}]")
-    elif isinstance(value, int) and not isinstance(value, bool) and abs(value) > _LARGEST:
-        raise CampaignError(f"{where}: {key}: an integer of {len(str(abs(value)))} digits is beyond the range of a "
-                            f"float (about 1.8e308)")
-
-
-_LARGEST = int(float.fromhex("0x1.fffffffffffffp+1023"))
 
 
 def _float(option: str, value) -> float:

@@ -86,3 +86,20 @@ def test_toml_nan_literal_is_refused(tmp_path):
     """))
     with pytest.raises(ParameterError, match=r"plant\.A: entry \(2, 2\) is not finite"):
         design_from_config(load_config(path))
+
+
+@pytest.mark.parametrize("plant_entry, observer_entry, key", [
+    ("A = [[0, 1], [-2, {big}]]", "t_settle = 0.15", "plant.A[2][2]"),
+    ("A = [[0, 1], [-2, 3]]", "t_settle = {big}", "observer.t_settle"),
+    ("A = [[0, 1], [-2, 3]]", "poles = [-1, -{big}]", "observer.poles[2]"),
+])
+def test_a_401_digit_integer_in_a_design_file_is_one_line_naming_its_key(tmp_path, plant_entry, observer_entry, key):
+    """Issue 37.6: an integer beyond a float in a design file ended in an OverflowError traceback."""
+    big = "1" * 401
+    path = tmp_path / "design.toml"
+    path.write_text(f'name = "inj"\n[plant]\n{plant_entry.format(big=big)}\nB = [[0], [1]]\nC = [[1, 0]]\n'
+                    f'[observer]\n{observer_entry.format(big=big)}\n')
+    with pytest.raises(ParameterError) as refused:
+        load_config(path)
+    assert str(refused.value) == (f"config {path}: {key}: an integer of 401 digits is beyond the range of a float "
+                                  f"(about 1.8e308)")
