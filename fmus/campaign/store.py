@@ -94,7 +94,7 @@ class Store:
         """Hold the directory for one sweep: a second one writing into it at the same time ends at once with a
         :class:`CampaignError` naming ``--out`` and the holder's PID (two sweeps compacting one dataset removed
         each other's part files: the loser's error was a bare path).  The lock goes with its process (a
-        killed sweep leaves none: the next resumes)."""
+        killed sweep leaves none: the next resumes, and removes the partial files the killed one left)."""
         self.out.mkdir(parents=True, exist_ok=True)
         if fcntl is None:
             yield self
@@ -111,6 +111,9 @@ class Store:
                                     f"--out") from None
             os.ftruncate(descriptor, 0)
             os.pwrite(descriptor, f"{os.getpid()}\n".encode(), 0)
+            for folder in (self.out, self.directory):   # no other sweep writes here: partial files are a dead one's
+                for stale in folder.glob(".*.partial") if folder.is_dir() else ():
+                    stale.unlink(missing_ok=True)
             yield self
         finally:
             os.close(descriptor)         # closing drops the lock

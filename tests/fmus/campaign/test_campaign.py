@@ -318,8 +318,12 @@ def test_a_second_sweep_into_the_same_out_ends_at_once_with_one_line(tmp_path, c
                                        f"into this folder; wait for it to end (then rerun: its samples are reused) "
                                        f"or choose another --out"], error
         assert not (out / "campaign.json").exists()        # nothing written by the loser
+    stale = [out / ".summary.txt.999999.partial", out / "samples" / ".part-1-999999.parquet.999999.partial"]
+    stale[1].parent.mkdir()
+    for path in stale:                                     # what a SIGKILLed sweep leaves (issue 37.8)
+        path.write_text("half")
     with Store(out).exclusive():                           # released when the first one ended
-        pass
+        assert not any(path.exists() for path in stale)
 
 
 def test_a_sweep_of_too_many_communication_points_is_refused_once_before_anything_is_built(tmp_path, capsys):
