@@ -99,16 +99,9 @@ class Store:
         if fcntl is None:
             yield self
             return
-        descriptor = os.open(self.out / LOCK, os.O_RDWR | os.O_CREAT, 0o644)
+        path = self.out / LOCK
+        descriptor = self._lock(path)
         try:
-            try:
-                fcntl.flock(descriptor, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except BlockingIOError:
-                holder = os.pread(descriptor, 32, 0).decode(errors="replace").strip()
-                holder = f" (PID {holder})" if holder.isdigit() else ""
-                raise CampaignError(f"--out {self.out}: another sweep{holder} is writing into this folder; wait "
-                                    f"for it to end (then rerun: its samples are reused) or choose another "
-                                    f"--out") from None
             os.ftruncate(descriptor, 0)
             os.pwrite(descriptor, f"{os.getpid()}\n".encode(), 0)
             for folder in (self.out, self.directory):   # no other sweep writes here: partial files are a dead one's
@@ -116,7 +109,31 @@ class Store:
                     stale.unlink(missing_ok=True)
             yield self
         finally:
+            path.unlink(missing_ok=True)  # while held: a sweep waiting on this file sees it gone and retries
             os.close(descriptor)         # closing drops the lock
+
+    def _lock(self, path: Path) -> int:
+        """A descriptor of ``path`` holding its exclusive lock, the file still at ``path`` (its holder removes it
+        when done: a lock taken on the removed file is dropped and taken again on the new one)."""
+        for _ in range(5):
+            descriptor = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+            try:
+                fcntl.flock(descriptor, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                holder = os.pread(descriptor, 32, 0).decode(errors="replace").strip()
+                os.close(descriptor)
+                holder = f" (PID {holder})" if holder.isdigit() else ""
+                raise CampaignError(f"--out {self.out}: another sweep{holder} is writing into this folder; wait "
+                                    f"for it to end (then rerun: its samples are reused) or choose another "
+                                    f"--out") from None
+            try:
+                if os.stat(path).st_ino == os.fstat(descriptor).st_ino:
+                    return descriptor
+            except FileNotFoundError:
+                pass
+            os.close(descriptor)
+        raise CampaignError(f"--out {self.out}: its lock file {LOCK} keeps being replaced (other sweeps starting "
+                            f"and ending?); try again")
 
     def parts(self) -> list[Path]:
         return sorted(self.directory.glob("part-*.parquet")) if self.directory.is_dir() else []
