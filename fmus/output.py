@@ -8,8 +8,9 @@
   :class:`~fmus.result.Result` the summary needs is a read-only memory map of it) and, optionally,
   to a CSV.  The CSV is written under a hidden temporary name in the target directory and renamed
   into place only when the run is complete; an interrupted (or failed) run renames it to
-  ``NAME.partial.csv`` instead.  A killed process leaves only the hidden ``.NAME.*.tmp``: never a
-  truncated file under the name of a complete one.
+  ``NAME.partial.csv`` instead.  A killed process leaves only the hidden ``.NAME.PID.*.tmp``: never a
+  truncated file under the name of a complete one; the next run writing ``NAME`` removes it (its
+  process is gone).
 * :func:`replacing` -- the same rename-into-place for every other output (figures, summaries, the
   report).
 
@@ -24,6 +25,8 @@ import contextlib
 import errno
 import os
 import tempfile
+import time
+from glob import escape as glob_escape
 from pathlib import Path
 
 import numpy as np
@@ -89,11 +92,48 @@ def file_mode() -> int:
 
 
 def _hidden_temporary(target: Path) -> tuple[int, Path]:
-    """A temporary file beside ``target`` (same file system: renaming it is atomic), hidden, ``.tmp``:
-    its descriptor (unbuffered: a failed write leaves nothing pending) and its path."""
-    descriptor, name = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
+    """A temporary file beside ``target`` (same file system: renaming it is atomic), hidden, ``.tmp``, named
+    with this process's id: its descriptor (unbuffered: a failed write leaves nothing pending) and its path.
+    Those of earlier writers that were killed are removed first (:func:`remove_stale_temporaries`)."""
+    remove_stale_temporaries(target)
+    descriptor, name = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.{os.getpid()}.", suffix=".tmp")
     os.fchmod(descriptor, file_mode())
     return descriptor, Path(name)
+
+
+#: a temporary file without a writer's id (an older obsfmu) is stale after this many seconds
+STALE_AFTER = 3600.0
+
+
+def remove_stale_temporaries(target: Path) -> list[Path]:
+    """Remove the hidden temporary files of ``target`` whose writer is gone (``.NAME.PID.*.tmp`` of a process
+    that no longer exists, or one without a process id older than :data:`STALE_AFTER`): a run killed with
+    SIGKILL leaves its temporary file, which nothing else would ever remove.  Returns what was removed."""
+    removed = []
+    for path in target.parent.glob(f".{glob_escape(target.name)}.*.tmp"):
+        middle = path.name[len(target.name) + 2:-len(".tmp")]
+        pid = middle.split(".", 1)[0]
+        try:
+            if pid.isdigit() and "." in middle:
+                if _alive(int(pid)):
+                    continue
+            elif time.time() - path.stat().st_mtime < STALE_AFTER:
+                continue
+            path.unlink()
+            removed.append(path)
+        except OSError:
+            continue                           # gone meanwhile, or not ours to remove
+    return removed
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True                            # another user's process
+    return True
 
 
 def _no_room(exc: OSError) -> bool:

@@ -181,6 +181,10 @@ def _pade(A: np.ndarray, m: int, identity: np.ndarray, even: list[np.ndarray]) -
     return np.linalg.solve(V - U, V + U)
 
 
+#: the largest ||M h|| the exact discretisation takes (its matrix powers overflow near 1e154)
+_LONGEST = 1e100
+
+
 class LinearPropagator:
     """Exact propagation of ``x' = A x + B u`` for inputs linear over the step.
 
@@ -209,6 +213,10 @@ class LinearPropagator:
             M[:n, :n] = self.A
             M[:n, n:n + m] = self.B
             M[n:n + m, n + m:] = np.eye(m)
+            size = _norm1(M) * h
+            if not size <= _LONGEST:               # also NaN and inf: expm's squarings would overflow
+                raise SignalError(f"the step h = {h:g} is too long for the exact discretisation: ||[A, B] h|| = "
+                                  f"{size:.3g}, more than {_LONGEST:.0e}; take a shorter step")
             E = expm(M * h)
             cached = (E[:n, :n], E[:n, n:n + m], E[:n, n + m:])
             if len(self._cache) >= self.CACHE_SIZE:

@@ -27,7 +27,7 @@ import socket
 import sys
 import time
 import uuid
-from contextlib import ExitStack, contextmanager
+from contextlib import ExitStack, contextmanager, nullcontext
 from datetime import datetime, timezone
 from pathlib import Path
 
@@ -231,6 +231,13 @@ def run_campaign(campaign: Campaign | Plan, *, workers: int | None = None, sched
         check_scheduler(scheduler)               # before anything is written
     plan = campaign if isinstance(campaign, Plan) else campaign.plan()
     store = Store(out) if out is not None else None
+    with store.locked() if store else nullcontext():      # one sweep at a time per --out
+        return _run(plan, store, report_only, retry_failed, progress, workers, scheduler, client, dashboard, log,
+                    plots, on_row)
+
+
+def _run(plan: Plan, store: Store | None, report_only, retry_failed, progress, workers, scheduler, client,
+         dashboard, log, plots, on_row) -> pa.Table:
     memory: list[dict] = []
     if store:
         store.write_text("campaign.json", json.dumps(_manifest(plan), indent=2) + "\n")

@@ -16,11 +16,14 @@ from __future__ import annotations
 
 import os
 import time as wallclock
+from contextlib import contextmanager
 from pathlib import Path
 
 import pyarrow as pa
 import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
+
+from .errors import CampaignError
 
 __all__ = ["Store", "load_rows", "rows_to_table", "STRING_COLUMNS"]
 
@@ -77,6 +80,22 @@ class Store:
     def __init__(self, out: Path | str):
         self.out = Path(out)
         self.directory = self.out / "samples"
+
+    @contextmanager
+    def locked(self):
+        """Hold ``OUT/.sweep.lock`` exclusively (flock): a second sweep into the same folder is refused at once
+        (two at a time raced on the part files and one ended with a bare path as its error)."""
+        self.out.mkdir(parents=True, exist_ok=True)
+        with open(self.out / ".sweep.lock", "a") as lock:
+            try:
+                import fcntl
+                fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except ImportError:                   # not POSIX: no lock (one sweep per folder is then the user's care)
+                pass
+            except OSError:
+                raise CampaignError(f"--out {self.out}: another sweep is writing into it; wait until it ends or "
+                                    f"give another --out") from None
+            yield self
 
     def parts(self) -> list[Path]:
         return sorted(self.directory.glob("part-*.parquet")) if self.directory.is_dir() else []

@@ -301,3 +301,14 @@ def test_a_scheduler_address_that_is_no_dask_scheduler_is_one_line(tmp_path):
         runner.SCHEDULER_TIMEOUT = saved
         server.shutdown()
     assert not (tmp_path / "out").exists()
+
+
+def test_a_second_sweep_into_the_same_folder_is_refused_at_once(tmp_path):
+    """Issue 37: two identical sweeps into one --out raced on the part files (one ended with a bare path)."""
+    from obsfmu.fmus.campaign.store import Store
+    with Store(tmp_path / "out").locked():
+        with pytest.raises(CampaignError, match="--out .*: another sweep is writing into it"):
+            with Store(tmp_path / "out").locked():
+                pass
+    with Store(tmp_path / "out").locked():                            # released when the first one ends
+        pass

@@ -148,3 +148,23 @@ def test_a_session_keeps_its_extracted_fmus_while_other_runs_prune_the_cache(shi
     cache._prune(folder, keep=folder / "newer-0")
     assert not any((folder / name).exists() for name in used), "closed, its entries are the oldest: pruned"
     assert not [entry.name for entry in folder.iterdir() if ".pruned." in entry.name]
+
+
+def test_an_fmu_of_another_guid_is_one_error_naming_it(ship_fmus, tmp_path):
+    """Issue 37: a cached FMU whose modelDescription names another GUID ended in fmpy's bare 'Failed to
+    instantiate model' traceback."""
+    import re
+    import zipfile
+
+    from obsfmu.fmus.master import Component, SimulationError, System, cosimulate
+    with zipfile.ZipFile(ship_fmus["ship_plant"]) as archive:
+        items = {name: archive.read(name) for name in archive.namelist()}
+    items["modelDescription.xml"] = re.sub(rb'guid="[^"]*"', b'guid="{00000000-0000-0000-0000-000000000000}"',
+                                           items["modelDescription.xml"], count=1)
+    other = tmp_path / "ship_plant.fmu"
+    with zipfile.ZipFile(other, "w") as archive:
+        for name, data in items.items():
+            archive.writestr(name, data)
+    with pytest.raises(SimulationError, match=f"plant: instantiating {re.escape(str(other))} failed .*GUID "
+                                              r"\{00000000-0000-0000-0000-000000000000\} is not this FMU's"):
+        cosimulate(System([Component("plant", other, {"u": 0.0})], []), 0.01, 1e-3, echo_log=False)
