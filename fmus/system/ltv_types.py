@@ -164,6 +164,10 @@ def _define_observer(model_name: str, values: dict, context: Context) -> list:
     context.notes.append(f"{prefix.rstrip('.')}: A0(t) = A(t) - L(t) C^T "
                          + ("constant, uniformly stable" if test == "constant" else
                             f"stable at {GRID_POINTS} frozen times of [0, {_grid(context)[-1]:g}] (necessary only)"))
+    if test == "constant":                    # the filters' rates: the converged flag's step range (load.py)
+        A0 = resolve(functions["A"])(0.0) - np.outer(resolve(functions["L"])(0.0),
+                                                      resolve(C)(0.0) if isinstance(C, dict) else np.array(C))
+        context.rate(np.linalg.eigvals(A0), "eig(A0) = eig(A - L C^T)")
     starts = {f"{name}_hat0": _vector(values, f"{name}_hat0", n, prefix, p=p) for name in ("x", *unknowns)}
     return [ltv_observer_definition(
         model_name, functions["A"], C, functions["L"], functions["f"], gamma=values["gamma"], beta=values["beta"],
