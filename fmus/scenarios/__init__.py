@@ -179,7 +179,7 @@ def ensure_definitions(items, build_dir: Path, force: bool, fmi_version: int, st
         stale = "rebuild asked" if force else why_not_current(path, definition, extra_modules, fmi_version,
                                                               standalone=standalone, platforms=platforms)
         if stale is not None:
-            if stale.startswith("edited"):
+            if stale.startswith(("edited", "no build record")):      # not the file obsfmu built there
                 print(f"obsfmu: note: {path}: {stale}; rebuilding it", file=sys.stderr)
             build_fmu(definition, folder, extra_modules, fmi_version, standalone=standalone, platforms=platforms)
         elif (problem := _damage(path, platforms)) is not None:
