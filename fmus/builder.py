@@ -34,7 +34,7 @@ from xml.etree.ElementTree import tostring
 from . import fmi3, native
 from .bundle import PROJECT, package_init, relocate
 from .cli.stopping import signals_held
-from .output import OutputError, file_mode
+from .output import file_mode
 from .runtime.definition import FmuDefinition, valid_identifier
 from .runtime.slave import versions
 
@@ -232,29 +232,30 @@ def build_fmu(definition: FmuDefinition, out_dir: Path | str, extra_modules=(), 
                 files.update(compiled_bundle(files))
                 files = with_runtime(files, "resources/obsfmu_native.txt", linux=standalone and host in platforms,
                                      win64="win64" in platforms)
-        handle, name = tempfile.mkstemp(prefix=f".{model}.", suffix=".fmu.partial", dir=out_dir)
-        os.fchmod(handle, file_mode())      # the mode of every other result (umask), not mkstemp's 0600
-        os.close(handle)
-        partial = Path(name)  # unique: concurrent builds of the same FMU never write one file
         try:
-            with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as archive:
-                for name, data in files.items():
-                    if isinstance(data, Path):
-                        archive.write(data, name)
-                    else:
-                        archive.writestr(name, data)
-                for platform, (folder, loader, bridge) in binaries.items():
-                    archive.write(loader, f"{folder}/{model}{loader.suffix}")
-                    archive.write(bridge, bridges[platform])
-            target = out_dir / f"{model}.fmu"
-            os.replace(partial, target)
-            _write_record(target, sources)
-        except OSError as exc:           # a full disk: the write names no file
-            if exc.filename:
+            handle, name = tempfile.mkstemp(prefix=f".{model}.", suffix=".fmu.partial", dir=out_dir)
+            os.fchmod(handle, file_mode())      # the mode of every other result (umask), not mkstemp's 0600
+            os.close(handle)
+            partial = Path(name)  # unique: concurrent builds of the same FMU never write one file
+            try:
+                with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as archive:
+                    for name, data in files.items():
+                        if isinstance(data, Path):
+                            archive.write(data, name)
+                        else:
+                            archive.writestr(name, data)
+                    for platform, (folder, loader, bridge) in binaries.items():
+                        archive.write(loader, f"{folder}/{model}{loader.suffix}")
+                        archive.write(bridge, bridges[platform])
+                target = out_dir / f"{model}.fmu"
+                os.replace(partial, target)
+            finally:
+                partial.unlink(missing_ok=True)
+        except OSError as exc:
+            if exc.filename is not None:
                 raise
-            raise OutputError(f"{out_dir / f'{model}.fmu'}: cannot be written ({exc.strerror or exc})") from None
-        finally:
-            partial.unlink(missing_ok=True)
+            raise OSError(exc.errno, exc.strerror or str(exc), str(out_dir / f"{model}.fmu")) from None
+        _write_record(target, sources)
         return target
 
 

@@ -8,9 +8,9 @@
   :class:`~fmus.result.Result` the summary needs is a read-only memory map of it) and, optionally,
   to a CSV.  The CSV is written under a hidden temporary name in the target directory and renamed
   into place only when the run is complete; an interrupted (or failed) run renames it to
-  ``NAME.partial.csv`` instead.  A killed process leaves only the hidden ``.NAME.HOST-PID.*.tmp``: never a
-  truncated file under the name of a complete one; the next writer of ``NAME`` removes it once its
-  process is gone (:func:`_remove_stale`).
+  ``NAME.partial.csv`` instead.  A killed process leaves only the hidden ``.NAME.PID.*.tmp``: never a
+  truncated file under the name of a complete one; the next run writing ``NAME`` removes it (its
+  process is gone).
 * :func:`replacing` -- the same rename-into-place for every other output (figures, summaries, the
   report).
 
@@ -23,12 +23,10 @@ from __future__ import annotations
 
 import contextlib
 import errno
-import glob
 import os
-import re
-import socket
 import tempfile
-import time as wallclock
+import time
+from glob import escape as glob_escape
 from pathlib import Path
 
 import numpy as np
@@ -93,54 +91,48 @@ def file_mode() -> int:
     return 0o666 & ~umask
 
 
-#: a temporary file whose writer cannot be asked (another host's, or of an earlier format) is stale this old
-STALE_AFTER = 24 * 3600.0
-#: this machine in the names of temporary files (a folder may be shared by hosts: a PID is one host's)
-_HOST = re.sub(r"[^A-Za-z0-9-]", "-", socket.gethostname())[:40] or "host"
-
-
 def _hidden_temporary(target: Path) -> tuple[int, Path]:
-    """A temporary file beside ``target`` (same file system: renaming it is atomic), hidden, ``.tmp``:
-    its descriptor (unbuffered: a failed write leaves nothing pending) and its path.  Its name carries the
-    writer, ``.NAME.HOST-PID.XXXXXXXX.tmp``: those of writers that are gone are removed first
-    (:func:`_remove_stale`)."""
-    _remove_stale(target)
-    descriptor, name = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.{_HOST}-{os.getpid()}.",
-                                        suffix=".tmp")
+    """A temporary file beside ``target`` (same file system: renaming it is atomic), hidden, ``.tmp``, named
+    with this process's id: its descriptor (unbuffered: a failed write leaves nothing pending) and its path.
+    Those of earlier writers that were killed are removed first (:func:`remove_stale_temporaries`)."""
+    remove_stale_temporaries(target)
+    descriptor, name = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.{os.getpid()}.", suffix=".tmp")
     os.fchmod(descriptor, file_mode())
     return descriptor, Path(name)
 
 
-def _remove_stale(target: Path) -> None:
-    """Remove the temporary files of ``target`` that a killed writer left (SIGKILL, a power cut: 174 kB each
-    that no run removed): those of this host whose process is gone, and any older than :data:`STALE_AFTER`
-    (another host's, an earlier format's).  A writer still running keeps its file; nothing here fails."""
-    prefix = f".{target.name}."
-    try:
-        found = list(target.parent.glob(glob.escape(prefix) + "*.tmp"))
-    except OSError:
-        return
-    now = wallclock.time()
-    for path in found:
-        host, _, pid = path.name[len(prefix):].split(".", 1)[0].rpartition("-")
+#: a temporary file without a writer's id (an older obsfmu) is stale after this many seconds
+STALE_AFTER = 3600.0
+
+
+def remove_stale_temporaries(target: Path) -> list[Path]:
+    """Remove the hidden temporary files of ``target`` whose writer is gone (``.NAME.PID.*.tmp`` of a process
+    that no longer exists, or one without a process id older than :data:`STALE_AFTER`): a run killed with
+    SIGKILL leaves its temporary file, which nothing else would ever remove.  Returns what was removed."""
+    removed = []
+    for path in target.parent.glob(f".{glob_escape(target.name)}.*.tmp"):
+        middle = path.name[len(target.name) + 2:-len(".tmp")]
+        pid = middle.split(".", 1)[0]
         try:
-            if (host == _HOST and pid.isdigit() and not _alive(int(pid))) \
-                    or now - path.lstat().st_mtime > STALE_AFTER:
-                path.unlink()
+            if pid.isdigit() and "." in middle:
+                if _alive(int(pid)):
+                    continue
+            elif time.time() - path.stat().st_mtime < STALE_AFTER:
+                continue
+            path.unlink()
+            removed.append(path)
         except OSError:
-            pass
+            continue                           # gone meanwhile, or not ours to remove
+    return removed
 
 
 def _alive(pid: int) -> bool:
-    """Process ``pid`` of this host exists (on Windows no safe test: True, the age decides)."""
-    if os.name == "nt":
-        return True
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
         return False
-    except OSError:                  # EPERM: another user's, alive
-        return True
+    except PermissionError:
+        return True                            # another user's process
     return True
 
 

@@ -231,25 +231,31 @@ def run_campaign(campaign: Campaign | Plan, *, workers: int | None = None, sched
         check_scheduler(scheduler)               # before anything is written
     plan = campaign if isinstance(campaign, Plan) else campaign.plan()
     store = Store(out) if out is not None else None
-    with store.exclusive() if store else nullcontext():       # one sweep at a time writes into an out
-        memory: list[dict] = []
-        if store:
-            store.write_text("campaign.json", json.dumps(_manifest(plan), indent=2) + "\n")
-        pending = [] if report_only else _pending(plan, store.read() if store else None, retry_failed, log)
-        if pending:
-            before = len(plan.samples) - len(pending)
-            bar = Progress(len(plan.samples), before, sys.stderr.isatty() if progress is None else progress)
-            try:
-                _compute(plan, _tasks(plan, pending), _client(workers, scheduler, client, dashboard, log), store,
-                         memory, bar, on_row)
-            finally:
-                bar.close()
-        if store is None:
-            return campaign_table(plan, rows_to_table(memory) if memory else None)
-        store.compact()
-        table = campaign_table(plan, store.read(), any_fmus=report_only)
-        _report(plan, store, table, plots, report_only, log)
-        return table
+    with store.locked() if store else nullcontext():      # one sweep at a time per --out
+        return _run(plan, store, report_only, retry_failed, progress, workers, scheduler, client, dashboard, log,
+                    plots, on_row)
+
+
+def _run(plan: Plan, store: Store | None, report_only, retry_failed, progress, workers, scheduler, client,
+         dashboard, log, plots, on_row) -> pa.Table:
+    memory: list[dict] = []
+    if store:
+        store.write_text("campaign.json", json.dumps(_manifest(plan), indent=2) + "\n")
+    pending = [] if report_only else _pending(plan, store.read() if store else None, retry_failed, log)
+    if pending:
+        before = len(plan.samples) - len(pending)
+        bar = Progress(len(plan.samples), before, sys.stderr.isatty() if progress is None else progress)
+        try:
+            _compute(plan, _tasks(plan, pending), _client(workers, scheduler, client, dashboard, log), store,
+                     memory, bar, on_row)
+        finally:
+            bar.close()
+    if store is None:
+        return campaign_table(plan, rows_to_table(memory) if memory else None)
+    store.compact()
+    table = campaign_table(plan, store.read(), any_fmus=report_only)
+    _report(plan, store, table, plots, report_only, log)
+    return table
 
 
 def _report(plan: Plan, store: Store, table: pa.Table, plots: bool, report_only: bool, log) -> None:

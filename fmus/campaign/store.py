@@ -25,15 +25,7 @@ import pyarrow.parquet as pq
 
 from .errors import CampaignError
 
-try:
-    import fcntl
-except ImportError:                      # Windows: no lock (two sweeps into one folder still keep correct rows)
-    fcntl = None
-
-__all__ = ["Store", "load_rows", "rows_to_table", "STRING_COLUMNS", "LOCK"]
-
-#: the file of a campaign directory that the sweep writing into it locks (exclusive ``flock``, with its PID)
-LOCK = ".obsfmu-sweep.lock"
+__all__ = ["Store", "load_rows", "rows_to_table", "STRING_COLUMNS"]
 
 STRING_COLUMNS = ("sample_id", "status", "reason", "worker", "fmu_set", "warnings", "invocation", "finished_at")
 BOOL_COLUMNS = ("converged",)
@@ -90,50 +82,20 @@ class Store:
         self.directory = self.out / "samples"
 
     @contextmanager
-    def exclusive(self):
-        """Hold the directory for one sweep: a second one writing into it at the same time ends at once with a
-        :class:`CampaignError` naming ``--out`` and the holder's PID (two sweeps compacting one dataset removed
-        each other's part files: the loser's error was a bare path).  The lock goes with its process (a
-        killed sweep leaves none: the next resumes, and removes the partial files the killed one left)."""
+    def locked(self):
+        """Hold ``OUT/.sweep.lock`` exclusively (flock): a second sweep into the same folder is refused at once
+        (two at a time raced on the part files and one ended with a bare path as its error)."""
         self.out.mkdir(parents=True, exist_ok=True)
-        if fcntl is None:
-            yield self
-            return
-        path = self.out / LOCK
-        descriptor = self._lock(path)
-        try:
-            os.ftruncate(descriptor, 0)
-            os.pwrite(descriptor, f"{os.getpid()}\n".encode(), 0)
-            for folder in (self.out, self.directory):   # no other sweep writes here: partial files are a dead one's
-                for stale in folder.glob(".*.partial") if folder.is_dir() else ():
-                    stale.unlink(missing_ok=True)
-            yield self
-        finally:
-            path.unlink(missing_ok=True)  # while held: a sweep waiting on this file sees it gone and retries
-            os.close(descriptor)         # closing drops the lock
-
-    def _lock(self, path: Path) -> int:
-        """A descriptor of ``path`` holding its exclusive lock, the file still at ``path`` (its holder removes it
-        when done: a lock taken on the removed file is dropped and taken again on the new one)."""
-        for _ in range(5):
-            descriptor = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+        with open(self.out / ".sweep.lock", "a") as lock:
             try:
-                fcntl.flock(descriptor, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except BlockingIOError:
-                holder = os.pread(descriptor, 32, 0).decode(errors="replace").strip()
-                os.close(descriptor)
-                holder = f" (PID {holder})" if holder.isdigit() else ""
-                raise CampaignError(f"--out {self.out}: another sweep{holder} is writing into this folder; wait "
-                                    f"for it to end (then rerun: its samples are reused) or choose another "
-                                    f"--out") from None
-            try:
-                if os.stat(path).st_ino == os.fstat(descriptor).st_ino:
-                    return descriptor
-            except FileNotFoundError:
+                import fcntl
+                fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except ImportError:                   # not POSIX: no lock (one sweep per folder is then the user's care)
                 pass
-            os.close(descriptor)
-        raise CampaignError(f"--out {self.out}: its lock file {LOCK} keeps being replaced (other sweeps starting "
-                            f"and ending?); try again")
+            except OSError:
+                raise CampaignError(f"--out {self.out}: another sweep is writing into it; wait until it ends or "
+                                    f"give another --out") from None
+            yield self
 
     def parts(self) -> list[Path]:
         return sorted(self.directory.glob("part-*.parquet")) if self.directory.is_dir() else []

@@ -129,12 +129,7 @@ class Fmi2Instance(Instance):
 
     # ------------------------------------------------------------------ life cycle (fmpy's FMU2Slave)
     def instantiate(self) -> None:
-        try:
-            self.slave.instantiate(callbacks=self._log.callbacks, loggingOn=True)
-        except Exception as exc:          # fmpy: a bare Exception("Failed to instantiate model")
-            if getattr(self.slave, "component", None):
-                raise
-            raise self.instantiation_failed(self.slave.unzipDirectory) from exc
+        self.slave.instantiate(callbacks=self._log.callbacks, loggingOn=True)
         self.instantiated = True
 
     def setup_experiment(self, start_time: float, stop_time: float) -> None:

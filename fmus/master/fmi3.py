@@ -194,14 +194,9 @@ class Fmi3Instance(Instance):
     # ------------------------------------------------------------------ life cycle (fmpy)
     def instantiate(self) -> None:
         self.required = np.array(self.required_inputs() if self.can_interpolate else [], dtype=np.uint32)
-        try:
-            self.fmu.instantiate(loggingOn=True, logMessage=self.log_message,
-                                 intermediateUpdate=self.intermediate_update if len(self.required) else None,
-                                 requiredIntermediateVariables=self.required.tolist())
-        except Exception as exc:          # fmpy: a bare Exception("Failed to instantiate model")
-            if getattr(self.fmu, "component", None):
-                raise
-            raise self.instantiation_failed(self.fmu.unzipDirectory) from exc
+        self.fmu.instantiate(loggingOn=True, logMessage=self.log_message,
+                             intermediateUpdate=self.intermediate_update if len(self.required) else None,
+                             requiredIntermediateVariables=self.required.tolist())
         self.raw = _RawCalls(self.fmu.dll)
         self.inputs.reset()
         self.instantiated = True

@@ -119,13 +119,6 @@ class Instance:
         """Instantiate the FMU (logging to the session's logger); sets :attr:`instantiated`."""
         raise NotImplementedError
 
-    def instantiation_failed(self, directory) -> SimulationError:
-        """One line for an FMU whose instantiate call returned NULL (fmpy raises a bare ``Exception``), with what
-        the FMU logged: most often a GUID its binary does not carry (an edited FMU or extracted copy)."""
-        return SimulationError(f"{self.name}: the FMU failed to instantiate ({self._log.last(self.name, 1)}); "
-                               f"from {directory}: an edited or damaged extracted copy can be removed, an FMU "
-                               f"rebuilt ('obsfmu build --rebuild')")
-
     def setup_experiment(self, start_time: float, stop_time: float) -> None:
         raise NotImplementedError
 

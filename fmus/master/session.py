@@ -57,6 +57,10 @@ def open_instance(component: Component, logger: Logger) -> Instance:
     return instance
 
 
+def component_of(system: System, name: str) -> Component:
+    return next(c for c in system.components if c.name == name)
+
+
 def check_run_settings(stop_time, step, order, start_time, coupling, tolerance) -> None:
     """A :class:`SimulationError` naming the first bad setting of a run."""
     if order not in ORDERS:
@@ -117,8 +121,8 @@ class Session:
             connected = wire(self.instances, system.connections)
             _require_inputs(unconnected_inputs(self.instances, connected,
                                                {c.name: c.start for c in system.components}))
-            for inst in self.instances.values():
-                inst.instantiate()
+            for inst in self.instances.values():       # a refusal (e.g. another GUID) names the FMU, no traceback
+                call(inst, self.logger, f"instantiating {component_of(system, inst.name).fmu}", inst.instantiate)
         except BaseException:
             self.close()
             raise

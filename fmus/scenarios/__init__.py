@@ -179,7 +179,7 @@ def ensure_definitions(items, build_dir: Path, force: bool, fmi_version: int, st
         stale = "rebuild asked" if force else why_not_current(path, definition, extra_modules, fmi_version,
                                                               standalone=standalone, platforms=platforms)
         if stale is not None:
-            if stale.startswith("edited"):
+            if stale.startswith(("edited", "no build record")):      # not the file obsfmu built there
                 print(f"obsfmu: note: {path}: {stale}; rebuilding it", file=sys.stderr)
             build_fmu(definition, folder, extra_modules, fmi_version, standalone=standalone, platforms=platforms)
         elif (problem := _damage(path, platforms)) is not None:
@@ -425,7 +425,8 @@ def _check_rate(scenario: Scenario, step: float, coupling: str) -> None:
         print(f"obsfmu: warning: step {step:g} {unit}: h |lambda| = {product:.3g} for the fastest dynamics "
               f"({what}, |lambda| = {rate:.3g} 1/{unit}); with {coupling} coupling expect a coupling error of up to about "
               f"{expected:.2g} relative to the signals (the ship's, unstable, lost that much); a step of at most {advised:.2g} {unit} keeps it below "
-              f"{COUPLING_ERROR_WARNING:g} (README: Choosing the communication step)", file=sys.stderr)
+              f"{COUPLING_ERROR_WARNING:g} (README: Choosing the communication step); an adaptive observer's converged "
+              f"flag stays 0 while (h |lambda|)^2/3 exceeds its converged_tolerance", file=sys.stderr)
 
 
 def _print_warnings(session: Session) -> None:

@@ -34,7 +34,7 @@ import numpy as np
 
 from obsfmu.observers.block import Segment
 from obsfmu.observers.checks import ParameterError, SignalError
-from obsfmu.observers.gpebo import GpeboObserver
+from obsfmu.observers.gpebo import GpeboObserver, generator_matrix
 from obsfmu.observers.gpebo.companion import UNKNOWN_FORMS
 from obsfmu.observers.gpebo.terms import GENERATORS
 
@@ -88,7 +88,32 @@ def _define_plant(model_name: str, values: dict, context: Context) -> list:
         xi_delta0=values["xi_delta0"], H_delta=values["H_delta"], Ts=_positive(values, "Ts", context.prefix),
         f=_f_option(values, n, context.prefix), description=values["description"])
     block_of(definition)      # the plant built once: shapes, f
+    for name in ("gamma_beta", "gamma_theta", "gamma_delta"):
+        if values[name] is not None:
+            _require_bounded(context.prefix + name, values[name])
     return [definition]
+
+
+def _require_bounded(field: str, gamma) -> None:
+    """A generator ``Gamma = Gamma0 + gamma e_1^T`` whose state stays bounded: every eigenvalue on or inside the
+    unit circle, those on it simple (the paper's generators are bounded; an unbounded one was refused only by
+    the excitation check, whose message pointed at k_gamma)."""
+    eigenvalues = np.linalg.eigvals(generator_matrix(np.asarray(gamma, dtype=float)))
+    moduli = np.abs(eigenvalues)
+    largest = float(moduli.max()) if moduli.size else 0.0
+    on_circle = eigenvalues[np.abs(moduli - 1.0) <= 1e-9]
+    repeated = any(np.sum(np.abs(on_circle - value) <= 1e-6) > 1 for value in on_circle)
+    if largest > 1.0 + 1e-9 or repeated:
+        why = (f"an eigenvalue of magnitude {largest:.4g} > 1" if largest > 1.0 + 1e-9
+               else "a repeated eigenvalue on the unit circle")
+        raise ParameterError(f"{field}: {np.asarray(gamma).tolist()} gives the generator Gamma = Gamma0 + gamma e_1^T "
+                             f"{why} (eigenvalues {_listed(eigenvalues)}): the coefficient it generates, and the "
+                             f"plant with it, grow without bound; the paper's generators are bounded (every "
+                             f"eigenvalue on or inside the unit circle, those on it simple)")
+
+
+def _listed(values) -> str:
+    return ", ".join(f"{v.real:.4g}" if abs(v.imag) < 1e-12 else f"{v.real:.4g}{v.imag:+.4g}i" for v in values)
 
 
 def _positive(values: dict, key: str, prefix: str) -> float:

@@ -19,6 +19,7 @@ from obsfmu.observers.checks import ParameterError
 from obsfmu.observers.expressions import Names, Source, compile_expression
 
 from ..master import COUPLINGS, ORDERS
+from ..runtime.definition import Parameter
 from .connect import check_compares, check_connections, check_values, require_connected
 from .locate import Locator
 from .model import ComponentSpec, SystemSpec
@@ -275,9 +276,28 @@ def _parse(text: str, path: str, folder: Path, locator: Locator) -> SystemSpec:
     require_connected(components, connections, values)
     compares = check_compares(_compares(data), components)
     reference = data.get("report", {}).get("reference")
+    fastest = max(context.rates, default=None)
+    _stamp_step_rate(components, fastest)
     return SystemSpec(top["name"], top["description"], top["time_unit"], components, connections, values,
                       experiment, compares, context.notes, path, None if reference is None else folder / reference,
-                      max(context.rates, default=None))
+                      fastest)
+
+
+def _stamp_step_rate(components: dict, fastest: tuple[float, str] | None) -> None:
+    """Give every continuous adaptive observer (an output ``converged``) the parameter ``step_rate``: the fastest
+    rate of the system's dynamics and signals.  Its FMU then claims convergence only at communication steps
+    whose coupling error ``(h step_rate)^2 / 3`` is within ``converged_tolerance`` (fmus/runtime/slave/step.py;
+    the error bounds of the families cannot see the coupling error: a flag of 1 with a parameter error of
+    0.15 at h = 0.5 s, issue 36).  Discrete observers (a sample time) sample exactly: none."""
+    if fastest is None:
+        return
+    for spec in components.values():
+        for definition in spec.definitions:
+            names = {p.name for p in definition.parameters}
+            if any(port.name == "converged" for port in definition.outputs) and not names & {"Ts", "sample_time"}:
+                definition.parameters.append(Parameter.scalar(
+                    "step_rate", fastest[0], f"fastest rate of the system ({fastest[1]}): converged stays 0 while "
+                    "(h step_rate)^2 / 3 > converged_tolerance (step_rate in 1/time unit)"))
 
 
 def load_system(path: Path | str) -> SystemSpec:

@@ -130,6 +130,49 @@ def _unknowns(values: dict, prefix: str) -> tuple[str, ...]:
     return tuple(name for name in PARTS if name in names)
 
 
+#: points (y, t) at which the terms of the unknowns are compared (seeded: the same verdict every build)
+_SAMPLES = 64
+
+
+def _require_separable(f, unknowns, p: int, prefix: str, stop_time: float) -> None:
+    """The unknowns' terms of regression (7) are not linearly dependent as functions of ``(y, t)``: ``k`` enters
+    through ``y``, ``m_i`` through ``f_i(y, t)``; if one is a combination of the others (``f = "y"`` with ``k`` and
+    ``m`` unknown), their columns of the regressor coincide whatever the excitation, the estimates never move
+    and nothing said why (issue 36).  Checked at seeded random points of ``y`` in [-3, 3] and ``t`` in
+    [0, stop_time]; ``u`` (the term of ``b``) is the plant's input, independent of them."""
+    if "m" not in unknowns:
+        return
+    rng = np.random.default_rng(36)
+    ys, ts = rng.uniform(-3.0, 3.0, _SAMPLES), rng.uniform(0.0, stop_time, _SAMPLES)
+    function, timed = resolve(f), "t" in compiled(f).vector.uses
+    with np.errstate(all="ignore"):
+        values = np.array([np.atleast_1d(function(t, y) if timed else function(y)) for y, t in zip(ys, ts)],
+                          dtype=float).reshape(_SAMPLES, p)
+    names = (["k (its term k y)"] if "k" in unknowns else []) + \
+        [f"m (its term m f(y{', t' if timed else ''}))" if p == 1 else f"m_{i} (the column of f[{i}])"
+         for i in range(1, p + 1)]
+    columns = np.column_stack(([ys] if "k" in unknowns else []) + [values[:, i] for i in range(p)])
+    usable = np.all(np.isfinite(columns), axis=1)
+    columns = columns[usable]
+    if len(columns) < columns.shape[1] + 2:
+        return                                       # f is not finite where it was sampled: refused elsewhere
+    scaled = columns / np.maximum(np.linalg.norm(columns, axis=0), 1e-300)
+    for j in range(scaled.shape[1]):
+        earlier = scaled[:, :j]
+        if not np.linalg.norm(scaled[:, j]) > 1e-12:
+            raise ParameterError(f"{prefix}unknowns: {names[j]} multiplies a term that is zero for every y; it "
+                                 "cannot be identified (regression (7) needs independent columns)")
+        if j and np.linalg.norm(scaled[:, j] - earlier @ np.linalg.lstsq(earlier, scaled[:, j], rcond=None)[0]) \
+                < 1e-9:
+            coefficients = np.linalg.lstsq(earlier, scaled[:, j], rcond=None)[0]
+            partners = [names[i] for i in range(j) if abs(coefficients[i]) > 1e-9]
+            raise ParameterError(
+                f"{prefix}unknowns: {names[j]} cannot be separated from {' and '.join(partners)}: its term is a "
+                f"linear combination of theirs for every y, so their columns of regression (7) coincide whatever "
+                f"the excitation (the estimates would never move); drop one from unknowns or give it as known, or "
+                f"change f")
+
+
 def _known(values: dict, unknowns, n: int, prefix: str, p: int) -> dict:
     """The values of the known parts; a value for an unknown part, or a known part without one, refused."""
     known = {}
@@ -164,6 +207,11 @@ def _define_observer(model_name: str, values: dict, context: Context) -> list:
     context.notes.append(f"{prefix.rstrip('.')}: A0(t) = A(t) - L(t) C^T "
                          + ("constant, uniformly stable" if test == "constant" else
                             f"stable at {GRID_POINTS} frozen times of [0, {_grid(context)[-1]:g}] (necessary only)"))
+    if test == "constant":                    # the filters' rates: the converged flag's step range (load.py)
+        A0 = resolve(functions["A"])(0.0) - np.outer(resolve(functions["L"])(0.0),
+                                                      resolve(C)(0.0) if isinstance(C, dict) else np.array(C))
+        context.rate(np.linalg.eigvals(A0), "eig(A0) = eig(A - L C^T)")
+    _require_separable(functions["f"], unknowns, p, prefix, context.stop_time or 1.0)
     starts = {f"{name}_hat0": _vector(values, f"{name}_hat0", n, prefix, p=p) for name in ("x", *unknowns)}
     return [ltv_observer_definition(
         model_name, functions["A"], C, functions["L"], functions["f"], gamma=values["gamma"], beta=values["beta"],

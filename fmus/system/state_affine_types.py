@@ -285,6 +285,7 @@ def _define_observer(model_name: str, values: dict, context: Context) -> list:
     _finite_at_sample(functions, dims)
     _vector(values, "rates", dims["l"] + dims["q"] + dims["p"], "k = l + q + p filter rates, one per filtered copy "
             "of (4)/(5)")
+    context.rate(values["rates"], "rates (filter rates a_i)")      # the converged flag's step range (load.py)
     _vector(values, "chi_hat0", dims["q"], "q: the observer's initial chi_hat")
     _vector(values, "theta_hat0", dims["l"] + dims["p"], "l + p: col(theta_l, theta_p)")
     Lambda, C, L = statement2 if statement2 is not None else (None, None, None)

@@ -180,6 +180,8 @@ def _define_observer(model_name: str, values: dict, context: Context) -> list:
     probe = UIOFiniteTimeObserver(*arguments, N, _settings(values), plant["Gamma"])   # checks every value
     if designed:
         require_bounded_transient("poles", probe.design.F)
+    context.rate(np.linalg.eigvals(probe.design.F), "eig(F)")
+    context.rate(probe.lambdas, "lambdas (filter rates)")
     definition = uio_observer_definition(model_name, *arguments, harmonics=N,
                                          settings=_settings(values, _rates(values, probe)), Gamma=plant["Gamma"],
                                          description=values["description"])

@@ -126,8 +126,10 @@ def uio_gain(A, B, C, r, poles) -> np.ndarray:
     T = np.linalg.svd(observability_matrix(M, C[None, :]))[2]     # rows: observable directions first
     fixed = np.linalg.eigvals((T @ M @ T.T)[k:, k:])
     if np.any(fixed.real >= 0):
-        raise ParameterError(f"L: (M, C) has the unobservable eigenvalues {np.round(fixed, 6).tolist()} "
-                             "(the plant's zeros); some are not stable, no L makes F Hurwitz")
+        raise ParameterError(f"poles: the plant is not minimum phase: its invariant zeros "
+                             f"{np.round(fixed, 6).tolist()} (eigenvalues of F = M - L C that no L moves) are not "
+                             "all in the open left half-plane; an unknown-input observer needs a minimum-phase plant "
+                             "(A, B, C), no choice of poles or L can help")
     if poles.size != k:
         raise ParameterError(f"poles: (M, C) has {n - k} unobservable eigenvalues {np.round(fixed, 6).tolist()} "
                              f"(the plant's zeros, kept in F); give the {k} poles of the observable part")

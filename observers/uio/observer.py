@@ -271,11 +271,14 @@ class UIOFiniteTimeObserver(Block):
         return self.stage + [None if self.state_stage is None else self.state_stage.drem]
 
     def excitation(self) -> float:
-        """Smallest ``|Delta|`` of the stages still adapting (0 for one not started); all done: of all."""
+        """Smallest ``|Delta|`` of the stages adapting now: started (stage 4 starts once stages 2 and 3 are
+        identified) and not yet identified; once every stage is identified, of all.  (A stage not yet
+        started counted as 0, so the output read 0 while stages 2-3 adapted: issue 36.)"""
         running = [code == RUNNING for code, _ in self.status()]
         drems = self._drems()
-        chosen = [d for d, r in zip(drems, running) if r] or [d for d in drems if d is not None]
-        return float(min(0.0 if d is None else abs(d.delta) for d in chosen))
+        active = [d for d, r in zip(drems, running) if r and d is not None]
+        chosen = active or [d for d in drems if d is not None]
+        return float(min(abs(d.delta) for d in chosen)) if chosen else 0.0
 
     def error_bound(self) -> float:
         """Bound on the error of stages 2-4 once all are identified (``inf`` before, or after a timeout).

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from examples_support import ROOT, columns, run_config
+from examples_support import ROOT, columns, obsfmu, read_csv, run_config
 
 EXAMPLE = ROOT / "examples" / "ltv_mass_spring_damper.toml"
 STOP = 12.0
@@ -113,3 +113,15 @@ def test_measurement_noise_raises_the_error_and_keeps_it_bounded(runs):
         error = np.abs(columns(data, "observer.theta_hat", 4) - true_theta(data))[late]
         worst[std] = error.max()
     assert worst[0.0] < worst[1e-3] < worst[1e-2] < 1.0
+
+
+def test_at_a_long_step_converged_stays_0_and_says_why(tmp_path):
+    """Issue 36: at --step 0.5 the flag claimed convergence with a parameter error of 0.15.  The coupling
+    error (0.5 * 3)^2 / 3 = 0.75 exceeds converged_tolerance 1e-3: held at 0, logged once; at the file's
+    0.01 s (3e-4) the flag comes as before (test above)."""
+    done = obsfmu("run", "--config", ROOT / "examples" / "ltv_mass_spring_damper.toml", "--csv", tmp_path / "long.csv",
+                  "--step", "0.5", "--stop-time", "20", "--build-dir", tmp_path / "build", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    data = read_csv(tmp_path / "long.csv")
+    assert not np.any(data["observer.converged"])
+    assert done.stderr.count("converged held at 0") == 1 and "steps of at most 0.0183" in done.stderr

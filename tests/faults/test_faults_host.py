@@ -42,7 +42,9 @@ def _start(args, **kwargs) -> subprocess.Popen:
 
 
 def _hidden(directory: Path) -> list[Path]:
-    return [p for p in Path(directory).rglob(".*")]
+    """Hidden files left behind, but for the ones a finished piece of work keeps on purpose: the build
+    record of a complete FMU (``.NAME.fmu.built``, fmus/builder.py) and a sweep folder's lock file."""
+    return [p for p in Path(directory).rglob(".*") if not p.name.endswith(".fmu.built") and p.name != ".sweep.lock"]
 
 
 # ----------------------------------------------------------------------------- 1: listening addresses

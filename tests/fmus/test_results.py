@@ -217,3 +217,38 @@ def test_a_run_read_between_its_points_through_a_cubic_spline_is_fourth_order():
     assert errors[1] < 1e-7 and errors[0] / errors[1] > 8, errors      # 8.3e-7, 2.3e-8 (linear: 2.0e-3, 3.2e-4)
     with pytest.raises(ValueError, match="times: .* leave the run"):
         result.at([4.5], "a.x")
+
+
+def test_temporary_files_of_killed_runs_are_removed_by_the_next_run(tmp_path):
+    """Issue 37: SIGKILL of `run --csv out.csv` left `.out.csv.*.tmp` (174 KB) that no later run removed."""
+    from obsfmu.fmus.output import STALE_AFTER, replacing
+    target = tmp_path / "out.csv"
+    gone = subprocess.Popen(["true"])
+    gone.wait()                                                        # a process id that no longer runs
+    killed = tmp_path / f".out.csv.{gone.pid}.k2j3.tmp"
+    running = tmp_path / f".out.csv.{os.getpid()}.a8f0.tmp"            # a writer still at work: kept
+    old = tmp_path / ".out.csv.x7q1zz.tmp"                             # an older obsfmu's name, an hour old
+    recent = tmp_path / ".out.csv.r4nd0m.tmp"
+    for path in (killed, running, old, recent):
+        path.write_text("1,2\n")
+    os.utime(old, (time.time() - STALE_AFTER - 5,) * 2)
+    with replacing(target) as temporary:
+        temporary.write_text("time\n")
+    assert target.read_text() == "time\n"
+    assert not killed.exists() and not old.exists() and running.exists() and recent.exists()
+
+
+def test_a_full_disk_while_building_names_the_fmu(tmp_path, monkeypatch, capsys):
+    """Issue 37: `--build-dir` on a full disk said `No space left on device`, naming no path."""
+    import errno
+    import zipfile
+
+    from obsfmu.fmus.cli import main as cli
+
+    def full(*args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device")
+    monkeypatch.setattr(zipfile.ZipFile, "writestr", full)
+    assert cli.main(["build", "--out", str(tmp_path / "build")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"obsfmu: error: {tmp_path / 'build'}/") and err.endswith(".fmu: No space left on device")
+    assert len(err.splitlines()) == 1 and not list((tmp_path / "build").glob("*.fmu*"))

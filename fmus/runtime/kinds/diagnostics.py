@@ -48,8 +48,8 @@ FT_DREM_CONTRACT = Contract(
     (("converged_tolerance", _TOLERANCE), ("theta_bound", _THETA_BOUND)))
 
 UIO_CONTRACT = Contract(
-    "smallest |Delta| of the FT-DREMs of the stages still adapting (0 before a stage starts, "
-    "the last value once all are identified)",
+    "smallest |Delta| of the FT-DREMs of the stages adapting now (started and not yet identified; "
+    "once all are identified, of all)",
     "1 once every stage is identified and the bound on its error (stage 1: exact after the "
     "finite-time switch; stages 2-4: settle_tol (1 + |estimate|) / expm1(sigma settle_window)) "
     "is at most converged_tolerance, else 0",

@@ -96,6 +96,8 @@ class BlockSlave(Variables, BlockOfParameters, Stepping, FmuStates, ModelDescrip
         self._feedthrough = True                         # the block's, once it exists
         self._bad: dict[str, float] = {}                 # input (or der(input)) element -> refused value
         self._sampling_noted = False                     # the warning of a sample instant inside a step: given
+        self._step_noted = False                         # the warning of a converged flag held at 0: given
+        self._step_rate = 0.0                            # the block's, once it exists (slave/block.py)
         self._snapshot: tuple[dict, Leaves] | None = None   # the block's state now, checked (rollback point)
         self._last_inputs = {}                          # port -> (its value, the time it belongs to)
         self._derivatives: dict[str, np.ndarray] = {}  # first input derivatives for the next step

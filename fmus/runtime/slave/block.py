@@ -66,6 +66,12 @@ class BlockOfParameters:
         if block is not None:
             block.caller_rolls_back = True       # the checked step restores the state of a failed step
         self._bound = MAGNITUDE_BOUND if block is None else block.magnitude_bound
+        #: the fastest rate of the system (system files' adaptive observers): converged vouched for only at
+        #: steps whose coupling error (h rate)^2/3 is within converged_tolerance (fmus/system/load.py)
+        self._step_rate = float(np.ravel(self._params["step_rate"])[0]) \
+            if "step_rate" in self._params and block is not None else 0.0
+        if self._step_rate:
+            block.longest_step = 0.0             # state: the longest communication step so far
         self._feedthrough = block is None or block.feedthrough
         self._bad = {}
         for port, names in self._element_names.items():

