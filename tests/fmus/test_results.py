@@ -178,31 +178,6 @@ def test_a_killed_run_leaves_no_file_that_looks_complete(long_run, tmp_path):
     assert csv.read_text() == "t\n" and _hidden(tmp_path) == []
 
 
-def test_stale_temporary_files_go_those_of_running_writers_stay(tmp_path):
-    """Issue 37.8: a SIGKILLed ``run --csv out.csv`` left ``.out.csv.*.tmp`` (174 kB) that later runs never
-    removed.  Removed: this host's of a process that is gone, and any older than STALE_AFTER (another host's,
-    the earlier format's); kept: a live process's, a young one that cannot be asked, other targets'."""
-    from obsfmu.fmus import output
-
-    gone = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True,
-                          text=True, check=True)
-    dead_pid = int(gone.stdout)
-    host = output._HOST
-    names = {"dead": f".out.csv.{host}-{dead_pid}.a1b2c3d4.tmp", "mine": f".out.csv.{host}-{os.getpid()}.e5f6.tmp",
-             "other host": ".out.csv.elsewhere-1.x9.tmp", "old other host": ".out.csv.elsewhere-2.y8.tmp",
-             "old format": ".out.csv.k2j4h6g8.tmp", "other target": f".in.csv.{host}-{dead_pid}.z7.tmp"}
-    for name in names.values():
-        (tmp_path / name).write_text("1,2\n")
-    old = time.time() - output.STALE_AFTER - 60
-    for key in ("old other host", "old format"):
-        os.utime(tmp_path / names[key], (old, old))
-    recorder = StreamingRecorder(tmp_path / "out.csv")
-    _record(recorder, *_rows(10))
-    recorder.close(complete=True)
-    left = {p.name for p in _hidden(tmp_path)}
-    assert left == {names["mine"], names["other host"], names["other target"]}, left
-
-
 def test_a_run_read_between_its_points_through_a_cubic_spline_is_fourth_order():
     """``Result.at`` (summaries compare an adaptive run with a reference at the reference's points): on
     unequal points, halving the spacing cuts the error of sin by about 16, not 4 as a linear reading."""
