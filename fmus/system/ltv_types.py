@@ -16,7 +16,7 @@ import numpy as np
 
 from obsfmu.observers.checks import ParameterError
 from obsfmu.observers.ltv.assumptions import require_assumptions
-from obsfmu.observers.ltv.estimators import ESTIMATORS
+from obsfmu.observers.ltv.estimators import DELTA_FLOOR, ESTIMATORS
 from obsfmu.observers.ltv.model import gain_matrix
 from obsfmu.observers.ltv.observer import PARTS
 
@@ -219,7 +219,8 @@ def _define_observer(model_name: str, values: dict, context: Context) -> list:
         input_degree=values["input_degree"], f_correction=float(values["f_correction"]),
         converged_tolerance=values["converged_tolerance"], theta_bound=values["theta_bound"],
         regression_error_bound=values["regression_error_bound"], unknowns=unknowns, known=known,
-        estimator=values["estimator"], extension_rate=values["extension_rate"], description=values["description"])]
+        estimator=values["estimator"], extension_rate=values["extension_rate"], delta_floor=values["delta_floor"],
+        description=values["description"])]
 
 
 register("ltv-adaptive-observer", "Adaptive observer of paper 001 for a plant `x' = A(t) x + k C^T(t) x + b u + "
@@ -236,12 +237,16 @@ register("ltv-adaptive-observer", "Adaptive observer of paper 001 for a plant `x
              Field("m", "vector-or-matrix", "the known m (exactly when m is not in unknowns; n x p with p "
                    "nonlinearities)", None, example="[0, -0.5]"),
              Field("estimator", "choice", "the estimator of regression (7)", ESTIMATORS[0], choices=ESTIMATORS),
-             Field("gamma", "number", "adaptation gain of the estimator", 1000.0, "", "100"),
+             Field("gamma", "number", "adaptation gain of the estimator (drem: the rate, 1/s, at which each "
+                   "parameter error decays while |Delta| >> delta_floor)", 1000.0, "", "100"),
              Field("beta", "number", "least squares: forgetting factor", 1.0, "1/s", "0.5"),
              Field("f0", "number", "least squares: F(0) = I / f0", 0.1, "", "0.1"),
              Field("M", "number", "least squares: bound on the largest eigenvalue of F", 1e12, "", "1e12"),
              Field("extension_rate", "number", "DREM: rate a of the extension Phi_e' = -a Phi_e + Psi^T Psi", 1.0,
                    "1/s", "2"),
+             Field("delta_floor", "number", "DREM: normalised gain gamma / (delta_floor^2 + Delta^2), so gamma is a "
+                   "rate whatever the number of unknowns; 0: the raw gain gamma of the papers", DELTA_FLOOR, "",
+                   "1e-6"),
              Field("x_hat0", "vector", "initial estimate of x(0) (absent: zero)", None, example="[0, 0]"),
              Field("k_hat0", "vector", "initial estimate of k (absent: zero)", None, example="[0, 0]"),
              Field("b_hat0", "vector", "initial estimate of b (absent: zero)", None, example="[0, 0]"),

@@ -11,6 +11,18 @@ Each parameter error obeys ``theta_tilde_i' = -gamma_i Delta^2 theta_tilde_i``:
 it converges iff ``Delta`` is not square-integrable, a condition weaker than
 persistent excitation of ``phi``, and monotonically, parameter by parameter.
 
+Normalised gain (optional, ``floor > 0``): ``gamma_i`` is replaced by
+``gamma_i / (floor^2 + Delta^2)``, so the error obeys
+``theta_tilde_i' = -gamma_i Delta^2 / (floor^2 + Delta^2) theta_tilde_i``:
+wherever ``|Delta| >> floor`` each error decays at the rate ``gamma_i``
+whatever the size of ``Delta``.  ``Delta`` is a ``p x p`` determinant, so it
+shrinks like a power of the signals' size and of the conditioning of the
+extension: with the raw gain a rate good for ``p = 2`` is useless at
+``p = 6`` (``Delta ~ 1e-8``); with the normalised gain ``gamma`` is a rate in
+1/s and ``floor`` the ``|Delta|`` below which adaptation fades (the
+normalised DREM of the DREM literature, e.g. Ortega et al. 2020's
+``gamma Delta / (1 + Delta^2)`` with the constant 1 as ``floor^2``).
+
 Time discretisation.  One :meth:`DREM.update` takes ``y``, ``phi`` held over
 ``[t, t + dt]``; the extended regression at ``t`` (start of the step) gives
 ``Delta`` and ``Y``, held over the step; the scalar laws are advanced exactly
@@ -71,15 +83,24 @@ class DREM:
         ``Delta`` used in the last step (0 before the first).
     """
 
-    not_state = ("p", "gamma", "normalize")       # fixed settings (observers.state)
+    not_state = ("p", "gamma", "normalize", "floor")       # fixed settings (observers.state)
 
-    def __init__(self, extension, gamma, normalize: bool = True, theta0=None):
+    def __init__(self, extension, gamma, normalize: bool = True, theta0=None, floor: float = 0.0):
         _check_extension(extension)
         self.extension = extension
         self.p = extension.p
         self.gamma = positive_gains("gamma", gamma, self.p)
         self.normalize = bool(normalize)
+        self.floor = float(floor)
+        if not (np.isfinite(self.floor) and self.floor >= 0):
+            raise ParameterError(f"floor: expected a finite number >= 0 (0: the raw gain), got {floor!r}")
         self.reset(theta0)
+
+    def gain(self, delta: float) -> np.ndarray:
+        """The gains ``gamma_i`` of the scalar laws at ``Delta``: raw, or ``gamma_i / (floor^2 + Delta^2)``."""
+        if self.floor == 0.0:
+            return self.gamma
+        return self.gamma / (self.floor * self.floor + delta * delta)
 
     def reset(self, theta0=None) -> None:
         """Restart from ``theta0`` (zeros if omitted) with zero extension state."""
@@ -92,7 +113,7 @@ class DREM:
         Y, Phi = regression(y, phi, self.p, self.extension.rows)
         dt = step_length(dt)
         mixed, delta = mix(*self.extension.extend(Y, Phi), normalize=self.normalize)
-        theta = scalar_gradient_step(self.theta_hat, mixed, delta, self.gamma, dt)
+        theta = scalar_gradient_step(self.theta_hat, mixed, delta, self.gain(delta), dt)
         self.extension.advance(Y, Phi, dt)
         self.theta_hat, self.delta = theta, delta
         return self.theta_hat
@@ -181,7 +202,7 @@ class FiniteTimeDREM:
         """Advance one step of length ``dt`` with ``y``, ``phi`` held; return ``theta*``."""
         dt = step_length(dt)
         self.drem.update(y, phi, dt)            # validates and raises before any change
-        self.nu = self.nu * np.exp(-self.gamma * (self.delta * self.delta * dt))
+        self.nu = self.nu * np.exp(-self.drem.gain(self.delta) * (self.delta * self.delta * dt))
         self.time += dt
         if self.switch_time is None and np.all(self.nu < self.mu):
             self.switch_time = self.time

@@ -64,7 +64,7 @@ from ..checks import ParameterError, as_vector, finite_signal, require_positive
 from ..estimation.exponential import phi1
 from ..integrators import DEFAULT_SUBSTEP_BUDGET, require_budget, substep_count
 from .assumptions import require_assumptions
-from .estimators import ESTIMATORS, make_estimator
+from .estimators import DELTA_FLOOR, ESTIMATORS, make_estimator
 from .model import Nonlinearities, OutputVector, gain_matrix
 from .stepping import (SUBSTEP_POINTS, IntegralSamples, PolynomialInputs, resolved_output, rk4_linear,
                        substep_points, time_function)
@@ -139,6 +139,9 @@ class LTVAdaptiveObserver(Block):
         ``gamma``); :mod:`observers.ltv.estimators`.
     extension_rate : float
         ``a`` of DREM's extension ``Phi_e' = -a Phi_e + Psi^T Psi`` (1/s; ``drem`` only).
+    delta_floor : float
+        DREM's normalised gain ``gamma / (delta_floor^2 + Delta^2)`` (``drem`` only; default
+        :data:`~observers.ltv.estimators.DELTA_FLOOR`; 0: the raw gain ``gamma``).
     f_time : bool
         ``f`` depends on the time too, ``w = m f(y, t)``: it is called ``f(t, y)`` (no ``f_correction``).
 
@@ -161,7 +164,7 @@ class LTVAdaptiveObserver(Block):
                  b_hat0=None, m_hat0=None, max_substep=1e-3, max_dy=0.2, input_degree=2,
                  substep_budget=DEFAULT_SUBSTEP_BUDGET, f_correction=False, converged_tolerance=1e-3,
                  theta_bound=100.0, regression_error_bound=0.0, unknowns=PARTS, k=None, b=None, m=None,
-                 estimator="least-squares", extension_rate=1.0, f_time=False):
+                 estimator="least-squares", extension_rate=1.0, f_time=False, delta_floor=DELTA_FLOOR):
         self.C = OutputVector(C)
         n = self.n = self.C.n
         self.A = time_function("A", A, (n, n))
@@ -191,7 +194,7 @@ class LTVAdaptiveObserver(Block):
         self.converged_tolerance = require_positive("converged_tolerance", converged_tolerance)
         self.regression_error_bound = require_positive("regression_error_bound", regression_error_bound, allow_zero=True)
         self.estimator = make_estimator(estimator, theta0, gamma, beta, f0, M, extension_rate,
-                                        self.regression_error_bound)
+                                        self.regression_error_bound, delta_floor)
         self.least_squares = estimator == ESTIMATORS[0]
         # |Theta_hat(0) - Theta|_2 <= | |Theta_hat(0)| + theta_bound |_2
         self.initial_error = float(np.linalg.norm(np.abs(theta0) + require_positive("theta_bound", theta_bound)))

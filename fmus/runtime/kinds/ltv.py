@@ -17,7 +17,7 @@ import numpy as np
 from obsfmu.observers.checks import ParameterError
 from obsfmu.observers.integrators import DEFAULT_SUBSTEP_BUDGET
 from obsfmu.observers.ltv import LTVAdaptiveObserver
-from obsfmu.observers.ltv.estimators import ESTIMATORS, require_exact
+from obsfmu.observers.ltv.estimators import DELTA_FLOOR, ESTIMATORS, require_exact
 from obsfmu.observers.ltv.model import Nonlinearities, OutputVector
 from obsfmu.observers.ltv.observer import PARTS
 from obsfmu.plants.ltv import OutputNonlinearLTVPlant
@@ -81,6 +81,7 @@ def _observer(p, options):
                                max_dy=float(p["max_dy"]), input_degree=_degree(p), substep_budget=_budget(p),
                                f_correction=_flag(p, "f_correction"), unknowns=unknowns, estimator=estimator,
                                extension_rate=float(p.get("extension_rate", 1.0)), f_time=_timed(options, "f"),
+                               delta_floor=float(p.get("delta_floor", DELTA_FLOOR)),
                                **least_squares, **contract, **known)
 
 
@@ -212,7 +213,7 @@ def ltv_observer_definition(model_name: str, A, C, L, f, *, gamma=1000.0, beta=1
                             x_hat0=None, k_hat0=None, b_hat0=None, m_hat0=None, max_substep=1e-3,
                             max_dy=0.2, input_degree=2, f_correction=0, converged_tolerance=1e-3, theta_bound=100.0,
                             regression_error_bound=0.0, unknowns=PARTS, known: dict | None = None,
-                            estimator: str = "least-squares", extension_rate=1.0,
+                            estimator: str = "least-squares", extension_rate=1.0, delta_floor=DELTA_FLOOR,
                             description: str = "") -> FmuDefinition:
     """Adaptive observer FMU of paper 001 (filters (2)-(6), regression (7), LS with forgetting, (10)).
 
@@ -220,7 +221,8 @@ def ltv_observer_definition(model_name: str, A, C, L, f, *, gamma=1000.0, beta=1
     the output vector (length n).  ``unknowns``: which of ``k``, ``b``, ``m`` are estimated (with
     ``x(0)``); the others are parameters with the values ``known[name]`` (vectors of n), and
     ``theta_hat`` holds ``[-x(0); unknowns]`` only.  ``estimator``: ``"least-squares"`` (parameters
-    ``gamma``, ``beta``, ``f0``, ``M``; output ``F_max``), ``"drem"`` (``gamma``, ``extension_rate``) or
+    ``gamma``, ``beta``, ``f0``, ``M``; output ``F_max``), ``"drem"`` (``gamma``, ``extension_rate``,
+    ``delta_floor``) or
     ``"gradient"`` (``gamma``).  Checked by building the block once.
     """
     unknowns = tuple(unknowns)
@@ -247,7 +249,7 @@ def ltv_observer_definition(model_name: str, A, C, L, f, *, gamma=1000.0, beta=1
               if name not in unknowns and name in known]
     parameters = _output_parameters(options, C) + values + [
         _scalar("gamma", gamma, f"adaptation gain of the {estimator} estimator"),
-    ] + _estimator_parameters(estimator, beta, f0, M, extension_rate) \
+    ] + _estimator_parameters(estimator, beta, f0, M, extension_rate, delta_floor) \
       + [Parameter.of(name, zeros[name[0]] if value is None else value, text)
          for name, value, text in estimates] \
       + _stepping(max_substep, max_dy, input_degree) \
@@ -277,13 +279,15 @@ def ltv_observer_definition(model_name: str, A, C, L, f, *, gamma=1000.0, beta=1
     return definition
 
 
-def _estimator_parameters(estimator: str, beta, f0, M, extension_rate) -> list[Parameter]:
+def _estimator_parameters(estimator: str, beta, f0, M, extension_rate, delta_floor) -> list[Parameter]:
     if estimator == "least-squares":
         return [_scalar("beta", beta, "forgetting factor", "1/s"), _scalar("f0", f0, "F(0) = I / f0"),
                 _scalar("M", M, "bound on the largest eigenvalue of F")]
     if estimator == "drem":
         return [_scalar("extension_rate", extension_rate, "rate a of the Kreisselmeier extension "
-                        "Phi_e' = -a Phi_e + Psi^T Psi", "1/s")]
+                        "Phi_e' = -a Phi_e + Psi^T Psi", "1/s"),
+                _scalar("delta_floor", delta_floor, "normalised gain gamma / (delta_floor^2 + Delta^2) of the scalar "
+                        "laws (0: the raw gain gamma)")]
     return []
 
 

@@ -11,6 +11,7 @@ from scipy.integrate import quad
 from scipy.linalg import expm
 from scipy.optimize import brentq
 
+from obsfmu.observers.checks import ParameterError
 from obsfmu.observers.estimation import (
     DREM,
     DelayExtension,
@@ -101,6 +102,28 @@ def test_drem_error_decays_as_exp_of_minus_gamma_integral_delta_squared():
         np.testing.assert_allclose(measured, exponent, rtol=2e-3)
     errors = np.linalg.norm(estimates - THETA, axis=1)
     assert first_time_below(times, errors, 1e-6) <= 7.5           # measured 7.09 s
+
+
+@pytest.mark.parametrize("floor", [0.05, 0.5])
+def test_drem_with_a_normalised_gain_decays_as_exp_of_minus_gamma_integral_of_delta2_over_floor2_plus_delta2(floor):
+    """Gain gamma / (floor^2 + Delta^2): the rate is gamma where |Delta| >> floor, gamma Delta^2 / floor^2 below."""
+    gamma = 10.0
+    est = DREM(FilterBankExtension([1.0]), gamma, normalize=False, floor=floor)
+    _, estimates = simulate(est, pe_regressor, 4.0)
+
+    def rate(s):
+        delta2 = analytic_filter_delta(s) ** 2
+        return delta2 / (floor ** 2 + delta2)
+    for T in (0.5, 1.0, 2.0):
+        exponent = gamma * quad(rate, 0.0, T, limit=200)[0]
+        measured = -np.log((THETA - estimates[int(round(T / DT)) - 1]) / THETA)
+        np.testing.assert_allclose(measured, exponent, rtol=3e-3)     # held Delta: O(dt), measured < 1.6e-3
+
+
+def test_drem_refuses_a_negative_or_nan_floor():
+    for floor in (-1.0, float("nan"), float("inf")):
+        with pytest.raises(ParameterError, match="floor"):
+            DREM(FilterBankExtension([1.0]), 1.0, floor=floor)
 
 
 @pytest.mark.parametrize(
