@@ -41,7 +41,7 @@ from obsfmu.observers.gpebo.terms import GENERATORS
 from ..runtime.definition import FmuDefinition
 from ..runtime.functions import expression_function
 from ..runtime.kinds.gpebo import generator_plant_definition, gpebo_observer_definition
-from .inmemory import block_of, component_block
+from .inmemory import CHECK_FIELD, block_of, component_block, refuse_or_warn
 from .schema import Context, Field, register
 
 __all__ = ["excitation_run", "structural_rank"]
@@ -275,11 +275,11 @@ def _require_exciting(observer_definition: FmuDefinition, values: dict, context:
         raise ParameterError(f"{context.prefix}input: the excitation check of {names[1]!r} driving {names[0]!r} "
                              f"failed: {exc}") from None
     if not observer.excited:
-        raise ParameterError(
-            f"{context.prefix}input: {names[1]!r} does not excite the regressions over {samples} samples of "
-            f"{names[0]!r}: nu_gamma = {observer.nu_gamma:.1e}, nu_eta = {observer.nu_eta:.1e} (excited needs both "
-            f"< excitation_tol = {values['excitation_tol']:g}; Statement 2); gamma and the state are not identified"
-            f"{_gain_hint(observer, values)}")
+        refuse_or_warn(("input", f"{names[1]!r} does not excite the regressions over {samples} samples of {names[0]!r}: "
+                        f"nu_gamma = {observer.nu_gamma:.1e}, nu_eta = {observer.nu_eta:.1e} (excited needs both < "
+                        f"excitation_tol = {values['excitation_tol']:g}; Statement 2); gamma and the state are not "
+                        f"identified{_gain_hint(observer, values)}"), values, context, observer_definition)
+        return
     context.notes.append(f"{context.prefix.rstrip('.')}: input {names[1]!r} excites {names[0]!r} over {samples} "
                          f"samples: nu_gamma = {observer.nu_gamma:.1e}, nu_eta = {observer.nu_eta:.1e}")
 
@@ -337,6 +337,7 @@ register("gpebo-observer", "Adaptive observer of paper 000 (GPEBO + DREM) for a 
                    "memory and the file refused if it is not excited", None, example='"source"'),
              Field("excitation_samples", "integer", "samples of that check (the planned run)", 40, example="40",
                    maximum=10 ** 5),
+             CHECK_FIELD,
              _TS) + _structure_fields(False, " (absent: the plant's)") + (
              Field("constants", "table", "named constants of the expressions f (absent: the plant's)", None,
                    example="{ a = 0.5 }"),
