@@ -22,12 +22,27 @@ import tempfile
 from pathlib import Path
 from typing import Any, Callable
 
-__all__ = ["writable", "FALLBACK_ERRORS", "cache_root", "remembered"]
+__all__ = ["writable", "FALLBACK_ERRORS", "cache_root", "obsfmu_cache", "default_build_dir", "remembered"]
 
 #: the errors that make a cache fall back (anything else, e.g. a full disk, is reported as it is)
 FALLBACK_ERRORS = (errno.EROFS, errno.EACCES, errno.EPERM)
 _chosen: dict[Path, Path] = {}           # folder asked for -> the folder used
 _fallback: list[Path] = []               # the private temporary cache of this process, once made
+
+
+def obsfmu_cache() -> Path:
+    """``$OBSFMU_CACHE`` (default ``~/.cache/obsfmu``): the extracted FMUs, the API's systems and builds."""
+    return Path(os.environ.get("OBSFMU_CACHE") or Path.home() / ".cache" / "obsfmu")
+
+
+def default_build_dir(root: Path | None = None) -> Path:
+    """Where FMUs are built when no ``--build-dir`` is given: the checkout's ``build/`` when obsfmu runs from its
+    source tree ``root`` (default: this file's; the README's commands), else ``$OBSFMU_CACHE/build`` -- never the
+    working directory."""
+    root = Path(__file__).resolve().parents[1] if root is None else Path(root)
+    if (root / "pyproject.toml").is_file() and (root / "fmus").is_dir():
+        return root / "build"
+    return obsfmu_cache() / "build"
 
 
 def cache_root() -> Path:
