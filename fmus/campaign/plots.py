@@ -15,6 +15,7 @@ import numpy as np
 import pyarrow as pa
 
 from .design import Plan
+from .table import HOLD, stop_in_time_unit
 
 __all__ = ["plot_convergence", "plot_vs_inputs", "write_plots"]
 
@@ -43,11 +44,6 @@ def _column(table: pa.Table, name: str) -> np.ndarray:
     return np.array([np.nan if v is None else v for v in table[name].to_pylist()], dtype=float)
 
 
-def _stop(plan: Plan) -> float:
-    """The stop time in the unit of the convergence time."""
-    return plan.settings["stop_time"] / (plan.settings["step"] if plan.time_unit == "samples" else 1.0)
-
-
 def plot_convergence(plan: Plan, table: pa.Table, stem: Path) -> list[Path]:
     """Histogram of the convergence time (converged samples) and its empirical CDF over all samples."""
     plt = _pyplot()
@@ -55,7 +51,7 @@ def plot_convergence(plan: Plan, table: pa.Table, stem: Path) -> list[Path]:
     times = np.sort(_column(table, "convergence_time")[converged])
     total = table.num_rows
     unit = plan.time_unit
-    stop = _stop(plan)
+    stop = stop_in_time_unit(plan)
     fig, (hist, cdf) = plt.subplots(1, 2, figsize=(11, 4.2), layout="constrained")
     label = f"convergence time, {unit}"
     if times.size:
@@ -66,6 +62,9 @@ def plot_convergence(plan: Plan, table: pa.Table, stem: Path) -> list[Path]:
     steps = np.concatenate([[0.0], times, [stop]])
     fractions = np.concatenate([[0.0], np.arange(1, times.size + 1) / max(total, 1), [times.size / max(total, 1)]])
     cdf.step(steps, fractions, where="post", color="tab:blue")
+    cdf.plot(times, fractions[1:-1], "o", color="tab:blue", ms=3)      # visible even when all converge at once
+    cdf.axvspan((1.0 - HOLD) * stop, stop, color="0.85", zorder=0,
+                label=f"last {100 * HOLD:g} % of the run: within tolerance there is not converged")
     cdf.axhline(times.size / max(total, 1), color="k", ls=":", lw=1,
                 label=f"converged by the stop time: {100 * times.size / max(total, 1):.1f} %")
     cdf.set_xlim(0, stop)
@@ -141,4 +140,4 @@ def write_plots(plan: Plan, table: pa.Table, out: Path) -> list[Path]:
             + plot_vs_inputs(plan, table, out / "error_vs_inputs", "final_error", plan.measure.error_label, log=True)
             + plot_vs_inputs(plan, table, out / "convergence_vs_inputs", "convergence_time",
                              f"convergence time, {plan.time_unit} (top edge: the stop time)", log=False,
-                             ceiling=_stop(plan)))
+                             ceiling=stop_in_time_unit(plan)))

@@ -38,7 +38,7 @@ from .errors import CampaignError
 from .plots import write_plots
 from .progress import Progress
 from .store import Store, rows_to_table
-from .table import campaign_table, measured, summary_text
+from .table import campaign_table, measured, stop_in_time_unit, summary_text
 from .worker import FmuPlugin, ParentWatch, Task, plugin_name, run_sample
 
 __all__ = ["run_campaign", "local_cluster", "default_workers", "ALLOWED_FAILURES", "RETRIES", "LOCALHOST"]
@@ -292,7 +292,7 @@ def _compute(plan: Plan, tasks: list[Task], connection, store: Store | None, mem
             for batch in _batches(as_completed([f for f, _ in futures.values()]), bar):
                 rows = [_row(future, futures[future.key][1], invocation) for future in batch]
                 try:   # a metric the measure names but the scenario does not report stops the campaign
-                    rows = [measured(row, plan.measure) for row in rows]
+                    rows = [measured(row, plan.measure, stop_in_time_unit(plan)) for row in rows]
                 finally:
                     if store:
                         store.append(rows)

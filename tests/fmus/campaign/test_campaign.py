@@ -256,6 +256,27 @@ def test_report_only_builds_the_table_summary_and_figures_from_stored_rows(build
         assert (tmp_path / f"{stem}.png").stat().st_size > 1000 and (tmp_path / f"{stem}.svg").stat().st_size > 1000
 
 
+def test_an_error_within_tolerance_only_at_the_end_of_the_run_is_not_converged(build_dir, tmp_path):
+    """Issue 38: "converged: 4 of 4" with a convergence time of 2.998 s in a 3 s run (a noisy error dipping below
+    the tolerance at the very end).  Converged needs the error within tolerance for at least the last 10 % of the
+    run; the summary counts the others and says why, the figure shades that window."""
+    from obsfmu.fmus.campaign.runner import run_campaign
+    from obsfmu.fmus.campaign.table import HOLD
+
+    plan = _gpebo(build_dir, vary={"source.amplitude[1]": "[0, 1, 2]"}).plan()      # 40 samples
+    assert HOLD == 0.1
+    metrics = {"gamma_samples_to_tolerance": 12.0, "final_state_error": 3e-12}
+    Store(tmp_path).append([
+        {"sample_id": sample.id, "source.amplitude[1]": value, "status": "ok", "fmu_set": plan.fmu_set,
+         "state_samples_to_tolerance": time, **metrics}
+        for sample, value, time in zip(plan.samples, (0.0, 1.0, 2.0), (36.0, 36.5, 39.0))])
+    table = run_campaign(plan, out=tmp_path, report_only=True, log=lambda _: None)
+    assert [row["converged"] for row in table.to_pylist()] == [True, False, False]
+    summary = (tmp_path / "summary.txt").read_text()
+    assert "converged: 1 of 3 (33.3 %)" in summary and "held at least the last 10 % of the run" in summary
+    assert "2 sample(s) came within tolerance only in the last 10 % of the run: not counted" in summary
+
+
 # ----------------------------------------------------------------------------- limits before any work (issue 37)
 def test_limits_are_checked_before_anything_is_allocated_or_started(tmp_path):
     """A grid of 1e9 points allocated 7.45 GiB before the sample limit was checked; a million workers were
