@@ -55,7 +55,7 @@ def false_flags(setting: tuple[str, str], std: float, seeds: int = 10) -> int:
     not record the true eta (the generator state at the last restart), the plant block has it.
     """
     from obsfmu.fmus.runtime.kinds import create_block
-    from obsfmu.fmus.system.gpebo_types import block_of
+    from obsfmu.fmus.system.inmemory import block_of
     from obsfmu.fmus.system.load import load_system
     from obsfmu.observers.block import Segment
 

@@ -15,7 +15,6 @@ FMUs are built once into the cache (``$OBSFMU_CACHE/build``, default ``~/.cache/
 from __future__ import annotations
 
 import hashlib
-import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -33,7 +32,7 @@ SimulationError = _in.SimulationError
 
 def cache_dir() -> Path:
     """Where the API keeps its system files and builds: ``$OBSFMU_CACHE`` (default ``~/.cache/obsfmu``)."""
-    return Path(os.environ.get("OBSFMU_CACHE", Path.home() / ".cache" / "obsfmu"))
+    return _in.obsfmu_cache()
 
 
 # ----------------------------------------------------------------------------------------------- systems

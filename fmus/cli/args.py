@@ -9,11 +9,13 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
+from ..caches import default_build_dir
+
 __all__ = ["Parser", "Duration", "positive", "positive_int", "duration", "scenario_times",
            "add_scenario_arguments", "add_system_file", "add_fmi_version", "add_platform", "add_standalone", "add_jobs_argument", "cpus", "DEFAULT_BUILD", "DEFAULT_RESULTS", "EXIT_USAGE",
            "TIME_UNITS"]
 
-DEFAULT_BUILD = Path("build")
+DEFAULT_BUILD = default_build_dir()      #: the checkout's build/ from a source tree, else $OBSFMU_CACHE/build
 DEFAULT_RESULTS = Path("results")
 EXIT_USAGE = 2
 

@@ -30,7 +30,7 @@ import uuid
 import zipfile
 from pathlib import Path, PurePosixPath
 
-from ..caches import writable
+from ..caches import obsfmu_cache, writable
 from .errors import SimulationError
 
 try:
@@ -42,7 +42,7 @@ __all__ = ["EXTRACT_CACHE", "EXTRACT_CACHE_SIZE", "ABANDONED_AFTER", "MAX_UNPACK
            "RATIO_FROM", "LEASE", "Lease", "extracted", "leased", "unzip"]
 
 #: extracted FMUs, by content (``OBSFMU_CACHE`` overrides); the newest are kept
-EXTRACT_CACHE = Path(os.environ.get("OBSFMU_CACHE", Path.home() / ".cache" / "obsfmu")) / "extracted"
+EXTRACT_CACHE = obsfmu_cache() / "extracted"
 EXTRACT_CACHE_SIZE = 64
 #: a partial extraction (``.<digest>.*``) this old was left by a killed run: removed when pruning
 ABANDONED_AFTER = 3600.0

@@ -28,7 +28,7 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..caches import writable
+from ..caches import cache_root, writable
 
 __all__ = ["NativeBuildError", "Target", "TARGETS", "target", "host", "platform_folder", "fmi_headers", "compiled",
            "loader_library", "bridge_library", "bridge_name", "python_record", "identity", "BOOTSTRAP", "OVERRIDE",
@@ -129,8 +129,7 @@ def _compiler() -> str:
 
 def cache_dir() -> Path:
     """Where the compiled binaries are cached (``$XDG_CACHE_HOME/obsfmu/native``)."""
-    root = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
-    return root / "obsfmu" / "native"
+    return cache_root() / "native"
 
 
 def compiled(stem: str, source: Path, flags: list[str], key_material: str, target: Target | None = None) -> Path:

@@ -24,7 +24,7 @@ import urllib.parse
 import urllib.request
 from pathlib import Path
 
-from ..caches import writable
+from ..caches import cache_root, writable
 from . import NativeBuildError
 
 __all__ = ["FetchError", "fetch", "PINNED", "WHEELS"]
@@ -51,8 +51,7 @@ class FetchError(NativeBuildError):
 
 
 def cache_folder() -> Path:
-    root = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
-    return root / "obsfmu" / "wheels"
+    return cache_root() / "wheels"
 
 
 def _sha256(path: Path) -> str:

@@ -138,6 +138,9 @@ class FmuDefinition:
     #: maxOutputDerivativeOrder = 1: the block's ``derivative(t)`` is the time derivative of its one output
     #: port (the sources), read by fmi2GetRealOutputDerivatives
     output_derivatives: bool = False
+    #: what a check found and the file chose to build anyway (``check = false``): logged by the FMU as a
+    #: warning at every instantiation, so the importer's log keeps it
+    warnings: list[str] = field(default_factory=list)
 
     def to_json(self) -> str:
         return json.dumps(asdict(self), indent=1)

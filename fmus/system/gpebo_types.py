@@ -40,9 +40,9 @@ from obsfmu.observers.gpebo.terms import GENERATORS
 
 from ..runtime.definition import FmuDefinition
 from ..runtime.functions import expression_function
-from ..runtime.kinds import create_block
 from ..runtime.kinds.gpebo import generator_plant_definition, gpebo_observer_definition
-from .schema import TYPES, Context, Field, register
+from .inmemory import CHECK_FIELD, block_of, component_block, refuse_or_warn
+from .schema import Context, Field, register
 
 __all__ = ["excitation_run", "structural_rank"]
 
@@ -120,12 +120,6 @@ def _positive(values: dict, key: str, prefix: str) -> float:
     if not values[key] > 0:
         raise ParameterError(f"{prefix}{key}: must be > 0, got {values[key]:g}")
     return float(values[key])
-
-
-def block_of(definition: FmuDefinition):
-    """The block an FMU of ``definition`` runs, built in memory (the same factory)."""
-    return create_block(definition.kind, {p.name: p.array(p.value) for p in definition.parameters},
-                        definition.options)
 
 
 register("generator-plant", "Discrete plant of paper 000: `x(k+1) = A x(k) + e_n beta(k) u(k) + theta(k) o f(y(k)) "
@@ -269,11 +263,8 @@ def _require_exciting(observer_definition: FmuDefinition, values: dict, context:
         context.notes.append(f"{context.prefix.rstrip('.')}: excitation not checked (name the file's plant and "
                              "input source in plant and input to check it before the run)")
         return
-    plant_kind, plant_values = context.others[names[0]]
-    source_kind, source_values = source
-    blocks = [block_of(TYPES[kind].define("check", {**spec, "given": set()}, Context(
-        prefix=f"components.{name}.", name=context.name, others=context.others, folder=context.folder))[0])
-        for name, kind, spec in ((names[0], plant_kind, plant_values), (names[1], source_kind, source_values))]
+    source_kind = source[0]
+    blocks = [component_block(name, context) for name in names]
     if blocks[1].input_sizes or blocks[1].output_sizes.get("y") != 1:
         raise ParameterError(f"{context.prefix}input: {names[1]!r} is a {source_kind}, not a source with no input "
                              "and one output y")
@@ -284,11 +275,11 @@ def _require_exciting(observer_definition: FmuDefinition, values: dict, context:
         raise ParameterError(f"{context.prefix}input: the excitation check of {names[1]!r} driving {names[0]!r} "
                              f"failed: {exc}") from None
     if not observer.excited:
-        raise ParameterError(
-            f"{context.prefix}input: {names[1]!r} does not excite the regressions over {samples} samples of "
-            f"{names[0]!r}: nu_gamma = {observer.nu_gamma:.1e}, nu_eta = {observer.nu_eta:.1e} (excited needs both "
-            f"< excitation_tol = {values['excitation_tol']:g}; Statement 2); gamma and the state are not identified"
-            f"{_gain_hint(observer, values)}")
+        refuse_or_warn(("input", f"{names[1]!r} does not excite the regressions over {samples} samples of {names[0]!r}: "
+                        f"nu_gamma = {observer.nu_gamma:.1e}, nu_eta = {observer.nu_eta:.1e} (excited needs both < "
+                        f"excitation_tol = {values['excitation_tol']:g}; Statement 2); gamma and the state are not "
+                        f"identified{_gain_hint(observer, values)}"), values, context, observer_definition)
+        return
     context.notes.append(f"{context.prefix.rstrip('.')}: input {names[1]!r} excites {names[0]!r} over {samples} "
                          f"samples: nu_gamma = {observer.nu_gamma:.1e}, nu_eta = {observer.nu_eta:.1e}")
 
@@ -346,6 +337,7 @@ register("gpebo-observer", "Adaptive observer of paper 000 (GPEBO + DREM) for a 
                    "memory and the file refused if it is not excited", None, example='"source"'),
              Field("excitation_samples", "integer", "samples of that check (the planned run)", 40, example="40",
                    maximum=10 ** 5),
+             CHECK_FIELD,
              _TS) + _structure_fields(False, " (absent: the plant's)") + (
              Field("constants", "table", "named constants of the expressions f (absent: the plant's)", None,
                    example="{ a = 0.5 }"),

@@ -269,7 +269,7 @@ def _parse(text: str, path: str, folder: Path, locator: Locator) -> SystemSpec:
     _identifier("name", top["name"])
     experiment = _experiment(data)
     context = Context(prefix="", name=top["name"], time_unit=top["time_unit"], folder=folder,
-                      stop_time=experiment["stop_time"])
+                      stop_time=experiment["stop_time"], step=experiment["step"])
     components = _components(data, context, locator, path)
     connections = check_connections(data.get("connections", []), components)
     values = check_values(_table("values", data.get("values", {})), components, connections)

@@ -20,9 +20,11 @@ from obsfmu.observers.ltv.estimators import DELTA_FLOOR, ESTIMATORS
 from obsfmu.observers.ltv.model import gain_matrix
 from obsfmu.observers.ltv.observer import PARTS
 
+from ..caches import remembered
 from ..runtime.callables import resolve
 from ..runtime.functions import compiled, expression_function
 from ..runtime.kinds.ltv import ltv_observer_definition, ltv_plant_definition
+from .inmemory import CHECK_FIELD, block_of, check_key, component_block, drive, refuse_or_warn
 from .schema import Context, Field, register
 
 __all__ = ["GRID_POINTS"]
@@ -213,14 +215,74 @@ def _define_observer(model_name: str, values: dict, context: Context) -> list:
         context.rate(np.linalg.eigvals(A0), "eig(A0) = eig(A - L C^T)")
     _require_separable(functions["f"], unknowns, p, prefix, context.stop_time or 1.0)
     starts = {f"{name}_hat0": _vector(values, f"{name}_hat0", n, prefix, p=p) for name in ("x", *unknowns)}
-    return [ltv_observer_definition(
+    definition = ltv_observer_definition(
         model_name, functions["A"], C, functions["L"], functions["f"], gamma=values["gamma"], beta=values["beta"],
         f0=values["f0"], M=values["M"], **starts, max_substep=values["max_substep"], max_dy=values["max_dy"],
         input_degree=values["input_degree"], f_correction=float(values["f_correction"]),
         converged_tolerance=values["converged_tolerance"], theta_bound=values["theta_bound"],
         regression_error_bound=values["regression_error_bound"], unknowns=unknowns, known=known,
         estimator=values["estimator"], extension_rate=values["extension_rate"], delta_floor=values["delta_floor"],
-        description=values["description"])]
+        description=values["description"])
+    _check_identified(definition, unknowns, n, p, values, context)
+    return [definition]
+
+
+# ------------------------------------------------------------------ the file's experiment, in memory
+#: the code the verdict depends on (its sources are part of the cache key)
+_CHECK_SOURCES = ("observers/ltv", "observers/estimation", "observers/integrators.py", "plants/ltv.py",
+                  "plants/signals.py", "fmus/system/ltv_types.py", "fmus/system/inmemory.py")
+
+
+def _check_identified(definition, unknowns, n: int, p: int, values: dict, context: Context) -> None:
+    """With ``plant`` and ``input`` named, the observer is run on them in memory along the file's experiment;
+    if its estimate of ``Theta`` is not within ``converged_tolerance`` of the plant's at the end, the file is
+    refused naming the entries least identified (or, ``check = false``, built with the finding logged)."""
+    where = context.prefix.rstrip(".")
+    names = values["plant"], values["input"]
+    if None in names or context.stop_time is None or context.step is None:
+        context.notes.append(f"{where}: identification not checked (name the file's ltv-plant and the source driving "
+                             "it in plant and input to check it before the build)")
+        return
+    for field, name in zip(("plant", "input"), names):
+        if name not in context.others:
+            raise ParameterError(f"{context.prefix}{field}: {name!r} is not a component defined before this one")
+    if context.others[names[0]][0] != "ltv-plant":
+        raise ParameterError(f"{context.prefix}plant: {names[0]!r} is a component of kind "
+                             f"{context.others[names[0]][0]!r}; the check runs an ltv-plant")
+    inputs = {"observer": definition.to_json(), "plant": context.others[names[0]], "input": context.others[names[1]],
+              "stop_time": context.stop_time, "step": context.step}
+    finding = remembered("checks", check_key(inputs, _CHECK_SOURCES), lambda: _identification_problem(
+        definition, unknowns, n, p, values, context))
+    refuse_or_warn(finding, values, context, definition)
+
+
+def _identification_problem(definition, unknowns, n: int, p: int, values: dict, context: Context):
+    """``(field, message)`` when the in-memory run ends with ``|Theta_hat - Theta|_2 > converged_tolerance``."""
+    plant_name, source_name = values["plant"], values["input"]
+    source = component_block(source_name, context)
+    if source.input_sizes or source.output_sizes.get("y") != 1:
+        raise ParameterError(f"{context.prefix}input: {source_name!r} is not a source with no input and one output y")
+    plant = component_block(plant_name, context)
+    truth, estimate, excitation = drive(source, plant, block_of(definition), context.stop_time, context.step)
+    theta = truth["theta"]
+    parts = {"x(0)": (-theta[:n], estimate["x0_hat"]), "k": (theta[n:2 * n], estimate["k_hat"]),
+             "b": (theta[2 * n:3 * n], estimate["b_hat"]), "m": (theta[3 * n:], estimate["m_hat"])}
+    labels, errors = [], []
+    for part in ("x(0)", *unknowns):
+        true, found = parts[part]
+        labels += [f"{part}[{i + 1}]" for i in range(true.size)]
+        errors += list(np.abs(found - true))
+    errors = np.array(errors)
+    total, tolerance = float(np.linalg.norm(errors)), values["converged_tolerance"]
+    if total <= tolerance:
+        return None
+    worst = [f"{labels[j]} (off by {errors[j]:.2g})" for j in np.argsort(-errors) if errors[j] > 0.1 * errors.max()]
+    return "input", (f"in the file's experiment ({source_name!r} driving {plant_name!r}, {context.stop_time:g} s at a "
+                     f"step of {context.step:g} s) the observer does not identify Theta = [-x(0); {'; '.join(unknowns)}]: "
+                     f"|Theta_hat - Theta|_2 = {total:.2g} > converged_tolerance = {tolerance:g} at the end, least "
+                     f"identified {', '.join(worst[:6])}; the excitation reached {excitation:.1e} "
+                     f"({values['estimator']}): regression (7) needs an input and nonlinearities that excite every "
+                     "unknown (more frequencies, a longer run, a larger gamma)")
 
 
 register("ltv-adaptive-observer", "Adaptive observer of paper 001 for a plant `x' = A(t) x + k C^T(t) x + b u + "
@@ -260,4 +322,10 @@ register("ltv-adaptive-observer", "Adaptive observer of paper 001 for a plant `x
                    "assumption)", 100.0, "", "5"),
              Field("regression_error_bound", "number", "least squares: a-priori bound on |z - Psi Theta| (noise); 0: "
                    "exact", 0.0, "(y)", "0.01"),
+             Field("plant", "component", "the ltv-plant it observes: with input, the observer is run on them in memory "
+                   "along the file's experiment before the build, and the file refused if Theta is not identified to "
+                   "converged_tolerance by the end", None, example='"plant"'),
+             Field("input", "component", "the source driving that plant (no input, output y)", None,
+                   example='"force"'),
+             CHECK_FIELD,
          ) + _STEPPING, _define_observer)

@@ -83,8 +83,8 @@ class Context:
     ``others`` maps every component defined before this one to its ``(kind, values)``; ``folder`` is the
     system file's folder (relative paths are read from there); ``notes`` collects what the build prints
     (designed gains and poles); ``rates`` the fastest rates of the components' dynamics and signals
-    (``(|lambda| in 1/time unit, what)``), against which every run's step is checked; ``stop_time`` is the
-    experiment's.
+    (``(|lambda| in 1/time unit, what)``), against which every run's step is checked; ``stop_time`` and
+    ``step`` are the experiment's.
     """
 
     prefix: str
@@ -94,6 +94,7 @@ class Context:
     folder: Path = Path(".")
     notes: list[str] = field(default_factory=list)
     stop_time: float | None = None     #: the file's [experiment] stop_time (checks on a grid of [0, stop_time])
+    step: float | None = None          #: the file's [experiment] step (the in-memory runs, fmus.system.inmemory)
     rates: list[tuple[float, str]] = field(default_factory=list)
 
     def rate(self, eigenvalues, what: str) -> None:

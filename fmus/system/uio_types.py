@@ -18,10 +18,14 @@ import numpy as np
 from obsfmu.observers.checks import ParameterError
 from obsfmu.observers.uio import (UIOFiniteTimeObserver, UIOSettings, check_generator, check_relative_degree,
                            relative_degree, uio_gain, uio_matrices)
+from obsfmu.observers.uio.identifiability import (ENOUGH_EXCITATION, EXACT_LEVEL, RANK_TOLERANCE,
+                                                  stage_two_excitation, stage_two_labels, stage_two_truth)
 from obsfmu.plants.uio import DisturbedLTVPlant
 
+from ..caches import remembered
 from ..config import require_bounded_transient
 from ..runtime.kinds.uio import ltv_plant_definition, uio_observer_definition
+from .inmemory import CHECK_FIELD, check_key, refuse_or_warn
 from .linear_types import matrix_text, poles_text
 from .schema import Context, Field, register
 
@@ -188,7 +192,65 @@ def _define_observer(model_name: str, values: dict, context: Context) -> list:
     d = probe.design
     context.notes.append(f"{context.prefix.rstrip('.')}: r = {r}, G = {matrix_text(d.G)}, L = {matrix_text(L)}; "
                          f"eig(F) = [{poles_text(np.linalg.eigvals(d.F))}]")
+    _check_identifiable(probe, plant, values, context, definition)
     return [definition]
+
+
+# ------------------------------------------------------------------ identifiability in the file's experiment
+def _check_identifiable(probe: UIOFiniteTimeObserver, plant: dict, values: dict, context: Context,
+                        definition) -> None:
+    """Stage 2 along the file's own experiment (:mod:`observers.uio.identifiability`): refused, or with
+    ``check = false`` built with the finding in the FMU's log."""
+    where = context.prefix.rstrip(".")
+    if context.stop_time is None:
+        context.notes.append(f"{where}: identifiability not checked (no experiment stop_time)")
+        return
+    inputs = {"plant": plant, "observer": {k: v for k, v in values.items() if k not in ("description", "check")},
+              "stop_time": context.stop_time}
+    problem = remembered("checks", check_key(inputs, _CHECK_SOURCES),          # a list in JSON
+                         lambda: _stage_two_problem(probe, plant, values, context.stop_time))
+    refuse_or_warn(problem, values, context, definition)
+
+
+#: the code the verdict of the check depends on (its sources are part of the cache key)
+_CHECK_SOURCES = ("observers/uio", "observers/estimation", "plants/uio.py", "fmus/system/uio_types.py")
+
+
+def _stage_two_problem(probe, plant: dict, values: dict, stop_time: float) -> tuple[str, str] | None:
+    """``(field, message)`` of what keeps stage 2 from identifying its unknowns in the experiment, or None."""
+    arrays = {key: plant[key] for key in ("A", "B", "C", "H", "Gamma", "xi0", "x0", "amplitude", "omega", "phase")}
+    rate = max(np.max(np.abs(np.linalg.eigvals(plant["A"] + np.outer(plant["B"], plant["H"] @ plant["xi0"])))),
+               float(np.max(plant["omega"])))
+    found = stage_two_excitation(probe, DisturbedLTVPlant(**arrays), stage_two_truth(plant["xi0"], plant["omega"],
+                                 probe.free), stop_time, rate, np.pi / 4 / float(np.max(plant["omega"])))
+    labels = stage_two_labels(probe.free, probe.harmonics)
+    unknowns = f"stage 2's {len(labels)} unknowns [{', '.join(labels)}]"
+    zeros = (f" and the part of x_tilde(0) along the plant's invariant zeros [{poles_text(found.zeros)}], which stage 1 "
+             "cannot see" if found.zeros.size else "")
+    exact = (f"regression (17) is exact (to {EXACT_LEVEL:g}) from t = {found.window[0]:.3g} s on (its error decays "
+             f"with the filters lambda2, lambda3{zeros})")
+    if not found.exact_part:
+        return "plant", (f"the file's experiment cannot identify {unknowns}: regression (17) is not exact before its "
+                         f"stop_time = {stop_time:g} s (its error, which decays with the filters lambda2, lambda3{zeros}, "
+                         f"is still {found.residual:.1e} of the signals at the end); give a longer experiment")
+    if 0 <= found.ratio < RANK_TOLERANCE:
+        weights = np.abs(found.null)
+        involved = [labels[j] for j in np.argsort(-weights) if weights[j] > 0.1 * weights.max()]
+        known = [name for name in involved if name.startswith("xi0[")]
+        return "xi0_free", (f"in the file's experiment {unknowns} cannot all be identified: {exact}, and there its "
+                            f"rows have rank < {len(labels)} (s_min / s_max = {found.ratio:.1e}): "
+                            f"{', '.join(sorted(involved, key=labels.index))} cannot be separated (in steady state y "
+                            f"is a sum of {probe.harmonics} sinusoid(s), {2 * probe.harmonics} dimensions: the unknowns "
+                            "rest on the plant's own transient)"
+                            + (f"; make {' or '.join(known)} known (xi0_free, xi0_known)" if known else ""))
+    if found.exponent < ENOUGH_EXCITATION:
+        needed = ENOUGH_EXCITATION / found.integral if found.integral > 0 else np.inf
+        return "gamma", (f"in the file's experiment stage 2 is barely excited where it counts: {exact}, and over "
+                         f"[{found.window[0]:.3g}, {stop_time:g}] s gamma[2] int Delta^2 = {found.exponent:.2g} < "
+                         f"{ENOUGH_EXCITATION:g}, so {unknowns} keep the error of the transient (a wrong value that "
+                         f"looks identified); it would take gamma[2] >= {needed:.1e}, or a plant transient that "
+                         f"outlasts {found.window[0]:.3g} s")
+    return None
 
 
 register("uio-ftdrem-observer", "Observer of paper 003 (unknown-input observer + finite-time DREM) for an "
@@ -236,4 +298,5 @@ register("uio-ftdrem-observer", "Observer of paper 003 (unknown-input observer +
                    "at most this", _DEFAULTS.converged_tolerance, "", "1e-3"),
              Field("decay_rate", "number", "sigma, a lower bound on the decay rate of the errors of stages 2-4 "
                    "(absent: the slowest filter pole)", None, "1/s", "0.3"),
+             CHECK_FIELD,
          ), _define_observer, depends=("plant",))

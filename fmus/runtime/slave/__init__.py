@@ -112,3 +112,5 @@ class BlockSlave(Variables, BlockOfParameters, Stepping, FmuStates, ModelDescrip
         mismatch = versions.note(Path(self.resources), definition.model_name)
         if mismatch:
             self.log(mismatch, Fmi2Status.warning)
+        for warning in definition.warnings:          # a failed check the file chose to build anyway
+            self.log(f"built anyway (check = false): {warning}", Fmi2Status.warning)

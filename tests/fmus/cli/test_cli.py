@@ -13,6 +13,7 @@ import shutil
 import signal
 import tempfile
 import zipfile
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -398,3 +399,19 @@ def test_a_step_far_beyond_the_default_warns_with_the_expected_growth(ship_build
     assert cli.main(["run", "ship", "--build-dir", ship_build, "--step", "1e-4", "--stop-time", "0.01",
                      "--coupling", "hold"]) == 0
     assert "warning: --step" not in capsys.readouterr().err
+
+
+def test_fmus_are_built_in_the_checkout_or_the_cache_never_in_the_working_directory(tmp_path, monkeypatch):
+    """Issue 38: `obsfmu run` started elsewhere wrote ./build there.  The default build folder is the checkout's
+    build/ (a source tree: pyproject.toml beside fmus/) or, for an installed obsfmu, $OBSFMU_CACHE/build."""
+    from obsfmu.fmus.caches import default_build_dir
+    from obsfmu.fmus.cli.args import DEFAULT_BUILD
+
+    root = Path(__file__).resolve().parents[3]
+    assert DEFAULT_BUILD == default_build_dir() == root / "build"
+    installed = tmp_path / "site-packages" / "obsfmu"
+    (installed / "fmus").mkdir(parents=True)
+    monkeypatch.setenv("OBSFMU_CACHE", str(tmp_path / "cache"))
+    assert default_build_dir(installed) == tmp_path / "cache" / "build"
+    monkeypatch.delenv("OBSFMU_CACHE")
+    assert default_build_dir(installed) == Path.home() / ".cache" / "obsfmu" / "build"

@@ -141,6 +141,15 @@ def test_an_input_that_does_not_excite_is_refused_with_the_measured_values(sourc
     assert nu_gamma > 1e-9, measured
 
 
+def test_check_false_builds_an_unexcited_file_with_the_finding_for_the_fmus_log():
+    spec = system(source='[components.source]\nkind = "constant"\nvalue = 5.0\n',
+                  observer=OBSERVER.replace('input = "source"', 'input = "source"\ncheck = false'))
+    observer = next(d for d in spec.definitions() if d.model_name.endswith("observer"))
+    assert len(observer.warnings) == 1 and observer.warnings[0].startswith(
+        "components.observer.input: 'source' does not excite the regressions over 40 samples")
+    assert any("WARNING, built anyway (check = false): input:" in note for note in spec.notes)
+
+
 def test_the_check_runs_the_planned_number_of_samples():
     # 12 samples are too few for the eta regression (it starts after the gamma one, ~ sample 14)
     refused(r"does not excite the regressions over 12 samples", replace=[

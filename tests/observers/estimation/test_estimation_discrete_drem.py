@@ -70,3 +70,36 @@ def test_dt_must_be_one_sample():
     est.update(1.0, phi)
     with pytest.raises(ParameterError, match="dt"):
         est.update(1.0, phi, 1e-3)
+
+
+def test_the_round_off_floor_keeps_a_weak_corrupted_sample_from_moving_an_exact_estimate():
+    """relative_floor: k' = max(k, floor Delta_max^2).  After a strong sample (Delta = sin 1) a sample whose
+    Delta is 1e-7 and whose Y carries an error of 1e-16 (round-off) moves the paper's law (k = 1e-30) by
+    1e-16 / 1e-7 = 1e-9; with a floor of 1e-8 by (1e-14 / 1e-8) 1e-16 / 1e-7 ~ 1e-15.  The error identity holds
+    with k' (contraction)."""
+    theta = np.array([1.0, 2.0])
+    strong = [np.array([np.sin(k), np.cos(k)]) for k in range(3)]
+    for floor, (low, high) in ((0.0, (5e-10, 2e-9)), (1e-8, (0.0, 1e-14))):       # measured 1.05e-9, 1.6e-15
+        est = DiscreteDREM(DelayExtension([1]), 1e-30, normalize=False, relative_floor=floor)
+        run(est, theta, strong)
+        assert np.max(np.abs(est.theta_hat - theta)) < 1e-14
+        # a weak pair: rows (1, 0) and (1, 1e-7) -> Delta = 1e-7; Y off by 1e-16 at the second
+        est.update(np.array([1.0, 0.0]) @ theta, np.array([1.0, 0.0]))
+        before = est.theta_hat.copy()
+        est.update(np.array([1.0, 1e-7]) @ theta + 1e-16, np.array([1.0, 1e-7]))
+        moved = np.max(np.abs(est.theta_hat - before))
+        assert low <= moved < high, (floor, moved)
+    # exact data: theta_tilde(k) = contraction * theta_tilde(k-1), contraction = k' / (k' + Delta^2)
+    est = DiscreteDREM(DelayExtension([1]), 1e-3, normalize=False, relative_floor=0.5, theta0=[0.0, 0.0])
+    errors = [theta.copy()]
+    for phi in [np.array([np.sin(k), np.cos(k)]) for k in range(8)]:
+        est.update(phi @ theta, phi)
+        np.testing.assert_allclose(theta - est.theta_hat, est.contraction * errors[-1], rtol=1e-9, atol=1e-15)
+        errors.append(theta - est.theta_hat)
+    assert est.delta_max == pytest.approx(np.sin(1.0)) and np.all(est.contraction > 0.3)   # k' = 0.5 sin^2 1
+
+
+def test_the_round_off_floor_is_a_number_in_0_1():
+    for floor in (-1e-3, 1.0, float("nan")):
+        with pytest.raises(ParameterError, match="relative_floor"):
+            DiscreteDREM(DelayExtension([1]), 1e-8, relative_floor=floor)
