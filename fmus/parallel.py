@@ -56,7 +56,7 @@ class Finished:
 
 
 def cost(name: str, settings: dict | None = None) -> float:
-    """Estimated cost of a run: its number of communication steps (``ltv-ls``: 150 000)."""
+    """Estimated cost of a run: its number of communication steps (``ship``: 50 000; not their cost)."""
     from .scenarios import get
     scenario, settings = get(name), settings or {}
     stop_time = settings.get("stop_time") or scenario.stop_time
@@ -125,8 +125,8 @@ def run_in_workers(out: Path, build_dir: Path, names: list[str], stop, jobs: int
     flag = context.RawValue("b", 0)
     longest_first = sorted(names, key=lambda name: -cost(name, settings.get(name)))
     workers = min(jobs, len(names))
-    print(f"obsfmu: running {len(names)} scenarios in {workers} worker processes, the longest first "
-          f"({longest_first[0]})", file=sys.stderr, flush=True)
+    print(f"obsfmu: running {len(names)} scenarios in {workers} worker processes, the most communication "
+          f"steps first ({longest_first[0]})", file=sys.stderr, flush=True)
     results: dict[str, Finished | None] = {}
     crashed: dict[str, BaseException] = {}
     shown = 0

@@ -10,7 +10,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..caches import default_build_dir
-from ..master import COUPLINGS
 
 __all__ = ["Parser", "Duration", "positive", "positive_int", "duration", "scenario_times",
            "add_scenario_arguments", "add_system_file", "add_fmi_version", "add_platform", "add_standalone", "add_jobs_argument", "cpus", "DEFAULT_BUILD", "DEFAULT_RESULTS", "EXIT_USAGE",
@@ -86,6 +85,7 @@ def scenario_times(args, scenario) -> dict[str, float | None]:
 
 
 def add_scenario_arguments(parser: argparse.ArgumentParser) -> None:
+    from ..master import COUPLINGS      # here: `obsfmu list` does not import the master
     parser.add_argument("scenario", metavar="SCENARIO", nargs="?", help="one of the scenarios listed below")
     add_system_file(parser, "instead of a SCENARIO")
     parser.add_argument("--stop-time", type=duration, metavar="T",

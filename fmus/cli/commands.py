@@ -5,18 +5,20 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from ..master import ORDERS
-from ..output import check_directory, check_file
 from .args import (DEFAULT_BUILD, DEFAULT_RESULTS, add_fmi_version, add_jobs_argument, add_platform,
                    add_scenario_arguments, add_standalone, add_system_file, duration, positive, scenario_times)
-from .runs import build_all, figure_paths, report_built, report_interrupted, run_one, run_scenario
 from .stopping import StopRequest
 from .subcommand import Subcommand
 
 __all__ = ["SUBCOMMANDS", "run_into", "run_and_report"]
 
+# the master, the output files and the runs (numpy, fmpy) are imported by the handlers that use them:
+# `obsfmu list` and `obsfmu --help` import neither (tests/fmus/cli/test_startup.py)
+
+
 def scenario_list_help() -> str:
-    from ..scenarios import SCENARIOS
+    from ..catalogue import entries
+    SCENARIOS = entries()
     width = max(len(name) for name in SCENARIOS)
     lines = "\n".join(f"  {name:<{width}}  [{scenario.time_unit}]  {scenario.description}"
                       for name, scenario in SCENARIOS.items())
@@ -26,6 +28,8 @@ def scenario_list_help() -> str:
 
 
 def cmd_build(args) -> int:
+    from ..output import check_directory
+    from .runs import build_all, report_built
     if args.config:  # checked whole before anything is written
         from ..system.commands import build_definitions, definitions_of
         definitions = definitions_of(args.config)
@@ -38,7 +42,8 @@ def cmd_build(args) -> int:
 
 
 def cmd_list(args) -> int:
-    from ..scenarios import SCENARIOS
+    from ..catalogue import entries
+    SCENARIOS = entries()
     width = max(len(name) for name in SCENARIOS)
     for name, scenario in SCENARIOS.items():
         print(f"{name:<{width}}  {scenario.description}")
@@ -50,7 +55,9 @@ def cmd_list(args) -> int:
 
 def cmd_run(args) -> int:
     from .. import scenarios
+    from ..output import check_directory, check_file
     from ..system.commands import scenario_key
+    from .runs import figure_paths, report_interrupted, run_scenario
 
     key = scenario_key(args)
     scenario = scenarios.get(key)
@@ -81,6 +88,7 @@ def cmd_run(args) -> int:
 def cmd_export(args) -> int:
     from .. import scenarios
     from ..export import export
+    from ..output import check_directory
     from ..system.commands import scenario_key
 
     scenario = scenarios.get(scenario_key(args))
@@ -102,6 +110,7 @@ def run_into(out: Path, build_dir: Path, names, stop: StopRequest, jobs: int = 1
     if jobs > 1 and len(names) > 1:
         from ..parallel import run_in_workers
         return run_in_workers(out, build_dir, list(names), stop, jobs, settings or {})
+    from .runs import run_one
     for name in names:
         status = run_one(out, build_dir, name, stop, (settings or {}).get(name))
         if status:
@@ -123,7 +132,9 @@ def run_and_report(out: Path, build_dir: Path, names: list[str], jobs: int = 1, 
 
 def cmd_all(args) -> int:
     """The main job: build every FMU, validate it, run every scenario, write the files and the report."""
+    from ..output import check_directory
     from ..scenarios import SCENARIOS
+    from .runs import build_all, report_built
 
     out = check_directory("--out", args.out)
     build_dir = check_directory("--build-dir", args.build_dir)
@@ -135,6 +146,7 @@ def cmd_all(args) -> int:
 
 def cmd_report(args) -> int:
     from .. import report
+    from ..output import check_directory
     from ..scenarios import SCENARIOS
 
     out = check_directory("--out", args.out)
@@ -165,6 +177,7 @@ def configure_build(parser) -> None:
 
 
 def configure_run(parser) -> None:
+    from ..master import ORDERS
     add_scenario_arguments(parser)
     parser.add_argument("--master", choices=ORDERS,
                         help="stepping order (default: the scenario's); adaptive: Gauss-Seidel steps with step "

@@ -9,12 +9,7 @@ import signal
 import sys
 from collections.abc import Callable
 
-from obsfmu.observers.checks import ParameterError
-
 from ..campaign.cli import SUBCOMMAND as SWEEP
-from ..master import SimulationError
-from ..native import NativeBuildError
-from ..output import OutputError
 from .args import EXIT_USAGE, Parser
 from .commands import SUBCOMMANDS as COMMANDS
 from .stopping import install_handlers, interrupted_status, raise_if_terminated, raise_terminated, restore_handlers
@@ -44,17 +39,38 @@ def _version() -> str:
         return "unknown (not installed)"
 
 
-def parser() -> argparse.ArgumentParser:
+def parser(only: str | None = None) -> argparse.ArgumentParser:
+    """The parser of every subcommand; with ``only`` (a subcommand's name, or ``""`` for none) the arguments
+    and epilog of that one alone are added (the others keep their name and help: ``obsfmu --help`` lists
+    them), so that a command imports what its own arguments need and nothing else."""
     main_parser = Parser(prog="obsfmu", description="Adaptive state observers as FMI 2.0 and 3.0 co-simulation FMUs")
     main_parser.add_argument("--version", action="version", version=f"obsfmu {_version()}")
     commands = main_parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for command in SUBCOMMANDS.values():
-        epilog = command.epilog() if callable(command.epilog) else command.epilog
+        whole = only is None or command.name == only
+        epilog = None if not whole else command.epilog() if callable(command.epilog) else command.epilog
         sub = commands.add_parser(command.name, help=command.help, description=command.help, epilog=epilog,
                                   formatter_class=argparse.RawDescriptionHelpFormatter)
-        command.configure(sub)
+        if whole:
+            command.configure(sub)
         sub.set_defaults(func=command.handler)
     return main_parser
+
+
+def _command(argv: list[str]) -> str:
+    """The subcommand ``argv`` names (its first word not an option), or ``""``."""
+    return next((word for word in argv if not word.startswith("-")), "")
+
+
+#: the errors that are a user's mistake (one line, exit 2), by the module defining them; a module not imported
+#: raised none, so only those already imported are caught (`obsfmu list` imports neither numpy nor the master)
+_USER_ERRORS = {"obsfmu.observers.checks": "ParameterError", "obsfmu.fmus.master.errors": "SimulationError",
+                "obsfmu.fmus.output": "OutputError"}
+_BUILD_ERRORS = {"obsfmu.fmus.native": "NativeBuildError"}
+
+
+def _imported(errors: dict[str, str]) -> tuple[type[BaseException], ...]:
+    return tuple(getattr(sys.modules[module], name) for module, name in errors.items() if module in sys.modules)
 
 
 def _silence_stdout() -> None:
@@ -71,16 +87,17 @@ def main(argv: list[str] | None = None) -> int:
     """``obsfmu ...``; returns the exit code (2: a user mistake, 128 + the signal: interrupted)."""
     previous = install_handlers(raise_terminated, ignored_too=())
     try:
-        args = parser().parse_args(argv)
+        argv = sys.argv[1:] if argv is None else argv
+        args = parser(_command(argv)).parse_args(argv)
         status = args.func(args)
         raise_if_terminated()   # a signal some library swallowed still ends the command with 128 + the signal
         return status
     except SystemExit as exc:  # argparse: --help (0) or a bad argument (2, message already printed)
         return exc.code if isinstance(exc.code, int) else EXIT_USAGE
-    except (ParameterError, SimulationError, OutputError) as exc:
+    except _imported(_USER_ERRORS) as exc:
         print(f"obsfmu: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
-    except NativeBuildError as exc:  # the machine lacks what building a binary needs (a compiler, a Windows wheel)
+    except _imported(_BUILD_ERRORS) as exc:  # the machine lacks what building a binary needs (a compiler, a Windows wheel)
         print(f"obsfmu: error: {exc}", file=sys.stderr)
         return 1
     except KeyboardInterrupt as exc:  # Ctrl-C, or a Terminated

@@ -34,12 +34,15 @@ class Progress:
 
 
 class Loop:
-    """What every stepping loop shares: recording, the stop request and the progress bar."""
+    """What every stepping loop shares: recording, the stop request (``should_stop``: None for none) and the
+    progress bar.  Called once per communication point: what no one asked for (no stop request, no bar)
+    costs no call there."""
 
     def __init__(self, recorder: Recorder, should_stop, progress: Progress):
         self.recorder, self.should_stop, self.progress = recorder, should_stop, progress
         self.steps = 0
         self.interrupted = False
+        self._update = progress.update if progress.enabled else None
 
     def record(self, t: float, values: np.ndarray) -> None:
         self.recorder.record(t, values)
@@ -47,8 +50,9 @@ class Loop:
     def accepted(self, t: float) -> bool:
         """Count an accepted step ending at ``t``; False when the run must stop here."""
         self.steps += 1
-        self.progress.update(t, self.steps)
-        if self.should_stop():
+        if self._update is not None:
+            self._update(t, self.steps)
+        if self.should_stop is not None and self.should_stop():
             self.interrupted = True
             return False
         return True
@@ -77,8 +81,9 @@ def communication_points(start_time: float, stop_time: float, step: float, ramp:
 
 def fixed(stepper: Stepper, start_time: float, stop_time: float, step: float, loop: Loop, ramp: int = 0) -> None:
     """The fixed-step run: one round per communication point, each recorded."""
+    step_round, record, accepted, live = stepper.round, loop.recorder.record, loop.accepted, stepper.live
     for t, h, t_next in communication_points(start_time, stop_time, step, ramp):
-        stepper.round(t, h)
-        loop.record(t_next, stepper.live)
-        if not loop.accepted(t_next):
+        step_round(t, h)
+        record(t_next, live)            # ``live`` is never rebound: the instances write into views of it
+        if not accepted(t_next):
             return

@@ -176,7 +176,7 @@ class Session:
         stepper = Stepper(self.instances, self.logger, jacobi=order == "jacobi", linear=coupling == "linear")
         starts = {c.name: {**c.start, **start.get(c.name, {})} for c in self.system.components}
         _initialize(self.instances, starts, stepper, start_time, stop_time, self.logger)
-        loop = Loop(recorder, should_stop or (lambda: False), Progress(progress, start_time, stop_time, time_unit))
+        loop = Loop(recorder, should_stop, Progress(progress, start_time, stop_time, time_unit))
         loop.record(start_time, stepper.live)
         if order == "adaptive":
             adaptive(stepper, start_time, stop_time, step, tolerance, 2 if coupling == "linear" else 1, loop)
