@@ -20,7 +20,7 @@ from ..runtime.kinds.linear import feedback_definition, observer_definition, pla
 from .schema import Context, Field, register
 from .values import MAX_DIMENSION
 
-__all__ = ["model_of", "matrix_text", "poles_text"]
+__all__ = ["model_of", "matrix_text", "poles_text", "lqr_gain"]
 
 _UNITS = (
     Field("state_units", "units", "unit of the state (one, or one per state)", None, example='["A", "rad/s", "rad"]'),
@@ -164,38 +164,65 @@ def _define_observer(model_name: str, values: dict, context: Context) -> list:
     return [observer_definition(model_name, model, N, x_hat0, units, values["description"], poles, design)]
 
 
-def _covariance(where: str, value, size: int, definite: bool) -> np.ndarray:
-    value = np.asarray(value, dtype=float)
+def _covariance(where: str, value, size: int, definite: bool, what: str = "covariance") -> np.ndarray:
+    value, article = np.asarray(value, dtype=float), "an" if what[0] in "aeiou" else "a"
     if value.shape != (size, size):
         raise ParameterError(f"{where}: expected a {size} x {size} matrix, got {value.shape[0]} x {value.shape[1]}")
     if not np.allclose(value, value.T, rtol=1e-12, atol=0.0):
-        raise ParameterError(f"{where}: a covariance must be symmetric")
+        raise ParameterError(f"{where}: {article} {what} must be symmetric")
     smallest = np.linalg.eigvalsh(value).min()
     if smallest <= 0 if definite else smallest < -1e-12 * max(1.0, np.abs(value).max()):
-        raise ParameterError(f"{where}: a covariance must be positive {'definite' if definite else 'semidefinite'} "
+        raise ParameterError(f"{where}: {article} {what} must be positive {'definite' if definite else 'semidefinite'} "
                              f"(smallest eigenvalue {smallest:.3g})")
     return value
+
+
+def lqr_gain(where: str, A, B, Q, R) -> np.ndarray:
+    """The LQR gain ``K = R^-1 B' P``, ``P`` the stabilising solution of ``A' P + P A - P B R^-1 B' P + Q = 0``
+    (minimises ``int x' Q x + u' R u`` under ``u = -K x``).  The steady-state Kalman gain is its dual:
+    ``N = lqr_gain(A', C', Q, R)'``."""
+    from scipy.linalg import solve_continuous_are
+    try:
+        P = solve_continuous_are(A, B, Q, R)
+    except (np.linalg.LinAlgError, ValueError) as exc:
+        raise ParameterError(f"{where}: the Riccati equation has no stabilising solution ({exc})") from None
+    return np.linalg.solve(R, B.T @ P)
+
+
+def _riccati_request(values: dict, prefix: str, table: dict, gain: str) -> None:
+    if values["Q"] is None or values["R"] is None or table.keys() - {"form"}:
+        raise ParameterError(f"{prefix}Q, R: a{' Kalman' if gain == 'N' else 'n LQR'} design needs both Q and R and "
+                             f"none of poles, t_settle, shift, {gain}")
 
 
 def _kalman(values: dict, context: Context, model, table: dict) -> np.ndarray:
     """The steady-state Kalman gain (LQE) N = P C' R^-1, P the stabilising solution of the continuous Riccati
     equation A P + P A' - P C' R^-1 C P + Q = 0 (process noise entering every state: G = I)."""
-    from scipy.linalg import solve_continuous_are
     prefix = context.prefix
-    if values["Q"] is None or values["R"] is None or table.keys() - {"form"}:
-        raise ParameterError(f"{prefix}Q, R: a Kalman design needs both Q and R and none of poles, t_settle, shift, N")
+    _riccati_request(values, prefix, table, "N")
     Q = _covariance(f"{prefix}Q", values["Q"], model.n, definite=False)
     R = _covariance(f"{prefix}R", values["R"], model.p, definite=True)
-    try:
-        P = solve_continuous_are(model.A.T, model.C.T, Q, R)
-    except (np.linalg.LinAlgError, ValueError) as exc:
-        raise ParameterError(f"{prefix}Q, R: the Riccati equation has no stabilising solution ({exc})") from None
-    N = P @ model.C.T @ np.linalg.inv(R)
+    N = lqr_gain(f"{prefix}Q, R", model.A.T, model.C.T, Q, R).T
     require_hurwitz(f"{prefix}Q, R (A - N C of the Kalman gain)", model.A - N @ model.C)
     context.notes.append(f"{prefix.rstrip('.')}: Kalman N = {matrix_text(N)}; eig(A - N C) = "
                          f"[{poles_text(np.linalg.eigvals(model.A - N @ model.C))}]")
     context.rate(np.linalg.eigvals(model.A - N @ model.C), "eig(A - N C)")
     return N
+
+
+def _lqr(values: dict, context: Context, model, table: dict) -> np.ndarray:
+    """The LQR gain K = R^-1 B' P of the state weight Q and the input weight R."""
+    prefix = context.prefix
+    _riccati_request(values, prefix, table, "K")
+    Q = _covariance(f"{prefix}Q", values["Q"], model.n, definite=False, what="state weight")
+    R = _covariance(f"{prefix}R", values["R"], model.m, definite=True, what="input weight")
+    K = lqr_gain(f"{prefix}Q, R", model.A, model.B, Q, R)
+    loop = model.A - model.B @ K
+    require_hurwitz(f"{prefix}Q, R (A - B K of the LQR gain)", loop)
+    context.notes.append(f"{prefix.rstrip('.')}: LQR K = {matrix_text(K)}; eig(A - B K) = "
+                         f"[{poles_text(np.linalg.eigvals(loop))}]")
+    context.rate(np.linalg.eigvals(loop), "eig(A - B K)")
+    return K
 
 
 def _design(table: dict):
@@ -233,15 +260,22 @@ def _define_feedback(model_name: str, values: dict, context: Context) -> list:
         raise ParameterError(f"{context.prefix}plant: the pair (A, B) of {values['plant']!r} is not controllable; "
                              "state feedback cannot place the poles")
     table = _table(values, ("poles", "t_settle", "shift", "form", "K"))
-    K, poles = _checked_gain(context, table, model, "K", (model.m, model.n),
+    if values["Q"] is not None or values["R"] is not None:
+        K = _lqr(values, context, model, table)
+    else:
+        K, _ = _checked_gain(context, table, model, "K", (model.m, model.n),
                              lambda p, name: place(model.A, model.B, p, name),
                              lambda K: model.A - model.B @ K, "A - B K")
     return [feedback_definition(model_name, K, units, values["description"])]
 
 
 register("state-feedback", "State feedback `u = -K x_hat + r` for an lti component. Give exactly one of `poles`, "
-         "`t_settle` (with `form`), `shift` or `K`. Inputs `x_hat`, `r`; output `u`.",
-         _design_fields("K", "m x n", "closed-loop"), _define_feedback, depends=("plant",))
+         "`t_settle` (with `form`), `shift`, `K`, or the LQR weights `Q` and `R`. Inputs `x_hat`, `r`; output `u`.",
+         _design_fields("K", "m x n", "closed-loop") + (
+             Field("Q", "matrix", "LQR state weight (n x n, symmetric positive semidefinite): with R, the gain K = "
+                   "R^-1 B' P minimising int x' Q x + u' R u, instead of poles", None, example="[[10, 0], [0, 1]]"),
+             Field("R", "matrix", "LQR input weight (m x m, symmetric positive definite)", None, example="[[0.1]]"),
+         ), _define_feedback, depends=("plant",))
 
 
 def _define_expression(model_name: str, values: dict, context: Context) -> list:
