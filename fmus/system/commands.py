@@ -153,11 +153,21 @@ def show(args) -> int:
             inputs = ", ".join(f"{p.name}[{p.size}]" for p in definition.inputs) or "none"
             outputs = ", ".join(f"{p.name}[{p.size}]" for p in definition.outputs)
             print(f"  {instance} ({component.kind}, FMU {definition.model_name}): inputs {inputs}; outputs {outputs}")
+            for direction, ports in (("in", definition.inputs), ("out", definition.outputs)):
+                for port in ports:
+                    print(f"      {direction} {_port_text(instance, port)}")
     for connection in spec.connections:
         print(f"  {connection.source} -> {connection.target}")
     for note in spec.notes:
         print(note)
     return 0
+
+
+def _port_text(instance: str, port) -> str:
+    """``plant.theta[1..8] (unit): description``: a port's columns, units and layout (issue 38)."""
+    columns = f"{instance}.{port.name}" if port.size == 1 else f"{instance}.{port.name}[1..{port.size}]"
+    unit = port.unit if isinstance(port.unit, str) else (", ".join(map(str, port.unit)) if port.unit else "")
+    return f"{columns}{f' ({unit})' if unit else ''}: {port.description}"
 
 
 def _scenario_file(name: str) -> Path:

@@ -307,6 +307,10 @@ def test_show_prints_the_reference_and_a_checked_file(tmp_path):
     assert done.returncode == 0, done.stderr
     assert "observer (luenberger, FMU dcmotor_observer): inputs u[1], y[1]; outputs x_hat[3], y_hat[1]" in done.stdout
     assert "observer.x_hat[3] -> controller.x_hat[3]" in done.stdout
+    # issue 38: each port's columns, units and layout
+    lines = done.stdout.splitlines()
+    assert any(line.strip().startswith("out observer.x_hat[1..3] (") and "estimate" in line for line in lines), lines
+    assert any(line.strip().startswith("in observer.y") for line in lines)
 
 
 def test_the_output_interval_and_a_reference_csv_named_by_the_file(tmp_path):
