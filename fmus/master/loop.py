@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import sys
 
 import numpy as np
@@ -13,13 +14,25 @@ from .round import Stepper
 __all__ = ["Loop", "Progress", "communication_points", "fixed"]
 
 
+def _terminal_columns(stream) -> int:
+    """The columns of the terminal ``stream`` writes to (0: none, or a terminal that does not say)."""
+    try:
+        return os.get_terminal_size(stream.fileno()).columns
+    except (OSError, ValueError, AttributeError):
+        return 0
+
+
 class Progress:
     """The run's progress in model time on stderr (tqdm), shown only for runs longer than a second."""
 
     def __init__(self, enabled: bool, start_time: float, stop_time: float, time_unit: str = "s"):
         self.enabled, self.start_time = enabled, start_time
+        # a pseudo-terminal may report a size of 0 x 0 (script, pty.fork, CI runners): tqdm then draws nothing at
+        # all, so such a terminal gets 100 x 20 (issue 38: no bar seen on a 6 s run in a pseudo-terminal)
+        sized = _terminal_columns(sys.stderr) > 0
         self.bar = tqdm(total=stop_time - start_time, disable=not enabled, file=sys.stderr, delay=1.0,
-                        mininterval=0.2, unit=time_unit, leave=True, dynamic_ncols=True,
+                        mininterval=0.2, unit=time_unit, leave=True, dynamic_ncols=sized,
+                        ncols=None if sized else 100, nrows=None if sized else 20,
                         bar_format="{l_bar}{bar:30}| t = {n:.4g}/{total:.4g} {unit}{postfix} [{elapsed}<{remaining}]")
 
     def update(self, t: float, steps: int) -> None:

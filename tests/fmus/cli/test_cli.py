@@ -11,6 +11,7 @@ import io
 import os
 import shutil
 import signal
+import sys
 import tempfile
 import zipfile
 from pathlib import Path
@@ -415,3 +416,28 @@ def test_fmus_are_built_in_the_checkout_or_the_cache_never_in_the_working_direct
     assert default_build_dir(installed) == tmp_path / "cache" / "build"
     monkeypatch.delenv("OBSFMU_CACHE")
     assert default_build_dir(installed) == Path.home() / ".cache" / "obsfmu" / "build"
+
+
+def test_the_progress_bar_shows_in_a_pseudo_terminal_of_any_size(build_dir):
+    """Issue 38: no bar was seen in a pseudo-terminal: one that reports 0 x 0 (script, pty.fork, CI runners)
+    made tqdm draw nothing.  A run of a few seconds in such a terminal shows the bar (model time and percent)."""
+    import pty
+    import select
+
+    pid, fd = pty.fork()
+    if pid == 0:                                    # the child: obsfmu run in the pseudo-terminal
+        os.execv(sys.executable, [sys.executable, "-m", "obsfmu", "run", "ltv-ls", "--stop-time", "3",
+                                  "--build-dir", str(build_dir)])
+    out = b""
+    while select.select([fd], [], [], 300)[0]:
+        try:
+            data = os.read(fd, 65536)
+        except OSError:                             # the child ended: the pseudo-terminal is closed
+            break
+        if not data:
+            break
+        out += data
+    _, status = os.waitpid(pid, 0)
+    text = out.decode(errors="replace")
+    assert os.waitstatus_to_exitcode(status) == 0, text
+    assert "%|" in text and "t = 3/3 s" in text and "steps" in text, text[-2000:]
