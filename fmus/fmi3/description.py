@@ -28,6 +28,7 @@ from xml.dom.minidom import parseString
 from xml.etree.ElementTree import Element, SubElement, fromstring, tostring
 
 from ..runtime.definition import FmuDefinition, element_names
+from .elements import units_note
 
 __all__ = ["Variable", "variables", "describe", "table", "read_table", "CAPABILITIES"]
 
@@ -118,8 +119,7 @@ def _unit_and_description(variable: Variable) -> tuple[str | None, str | None]:
     units = set(variable.units)
     if len(units) <= 1:
         return (units.pop() if units else None), variable.description
-    listed = ", ".join(unit or "-" for unit in variable.units)
-    return None, f"{variable.description or variable.name} (units by element: {listed})"
+    return None, units_note(variable.description or variable.name, variable.units)
 
 
 def _variable_element(parent: Element, variable: Variable, intermediate: bool) -> None:

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 from ..runtime.definition import element_names
 
-__all__ = ["Element", "elements", "scalar_variables"]
+__all__ = ["Element", "elements", "scalar_variables", "units_note", "element_units"]
 
 #: FMI 3.0 type -> the FMI 2.0 type the rest of the project speaks
 _TYPES = {"Float64": "Real", "Int32": "Integer", "Boolean": "Boolean", "String": "String"}
@@ -39,6 +39,23 @@ class Element:
     description: str | None = None
 
 
+#: how an FMI 3.0 array of elements with different units says them (FMI 3.0 gives a variable one unit)
+_UNITS_NOTE = " (units by element: "
+
+
+def units_note(description: str, units) -> str:
+    """``description`` with the units of the elements of a mixed-unit array: ``... (units by element: A, rad)``."""
+    return f"{description}{_UNITS_NOTE}{', '.join(unit or '-' for unit in units)})"
+
+
+def element_units(description: str | None, size: int) -> list[str | None] | None:
+    """The units :func:`units_note` wrote into ``description``, one per element (None: no such note)."""
+    if not description or not description.endswith(")") or _UNITS_NOTE not in description:
+        return None
+    units = [unit.strip() for unit in description[description.rindex(_UNITS_NOTE) + len(_UNITS_NOTE):-1].split(",")]
+    return [None if unit == "-" else unit for unit in units] if len(units) == size else None
+
+
 def elements(model_description) -> dict[str, Element]:
     """FMI 2.0 element name -> :class:`Element` for every variable except ``time`` (in document order)."""
     found = {}
@@ -48,11 +65,12 @@ def elements(model_description) -> dict[str, Element]:
         shape = tuple(int(d.start) for d in variable.dimensions)
         names = element_names(variable.name, shape)
         starts = variable.start.split() if variable.start else [None] * len(names)
+        units = element_units(variable.description, len(names)) or [variable.unit] * len(names)
         for index, name in enumerate(names):
             found[name] = Element(name, variable.name, index, len(names), variable.valueReference,
                                   _TYPES.get(variable.type, variable.type), variable.causality, variable.variability,
                                   starts[index] if index < len(starts) else None, variable.min, variable.max,
-                                  variable.unit, variable.description)
+                                  units[index], variable.description)
     return found
 
 
