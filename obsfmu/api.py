@@ -38,11 +38,12 @@ def cache_dir() -> Path:
 # ----------------------------------------------------------------------------------------------- systems
 
 def lti(A, B=None, C=None, D=None, *, x0=None, sample_time=None, state_units=None, input_units=None,
-        output_units=None, description: str = "") -> dict:
+        output_units=None, state_names=None, input_names=None, output_names=None, description: str = "") -> dict:
     """An ``lti`` component (docs/system-file-reference.md): matrices of numbers or constant expressions
     (``"-16000/250"``, read by the project's expression grammar, never ``eval``)."""
     given = dict(A=A, B=B, C=C, D=D, x0=x0, sample_time=sample_time, state_units=state_units,
-                 input_units=input_units, output_units=output_units, description=description or None)
+                 input_units=input_units, output_units=output_units, state_names=state_names,
+                 input_names=input_names, output_names=output_names, description=description or None)
     return {"kind": "lti", **{k: _plain(v) for k, v in given.items() if v is not None}}
 
 
@@ -59,7 +60,9 @@ def _plain(value):
 
 def from_statespace(statespace, *, x0=None, description: str | None = None, **units) -> dict:
     """A python-control ``StateSpace`` as an ``lti`` component: its matrices, its sample time (a discrete
-    system's ``dt``), and its state/input/output names in the description (``x = [position, velocity]``).
+    system's ``dt``), and its state/input/output names, as ``state_names`` ... (FMU descriptions, summaries,
+    figures; python-control's default labels ``x[0]`` ... are left out) and in the description
+    (``x = [position, velocity]``).
 
     ``units``: ``state_units``, ``input_units``, ``output_units`` as for :func:`lti`.
     """
@@ -76,8 +79,12 @@ def from_statespace(statespace, *, x0=None, description: str | None = None, **un
              if getattr(statespace, attr, None)]
     text = description if description is not None else (getattr(statespace, "name", "") or "lti") + ": " + \
         "; ".join(names)
+    given = {f"{kind}_names": list(labels) for kind, symbol, attr in
+             (("state", "x", "state_labels"), ("input", "u", "input_labels"), ("output", "y", "output_labels"))
+             if (labels := getattr(statespace, attr, None)) and list(labels) != [f"{symbol}[{i}]" for i in
+                                                                               range(len(labels))]}
     return lti(np.asarray(statespace.A), np.asarray(statespace.B), np.asarray(statespace.C),
-               np.asarray(statespace.D), x0=x0, sample_time=dt or None, description=text, **units)
+               np.asarray(statespace.D), x0=x0, sample_time=dt or None, description=text, **given, **units)
 
 
 @dataclass

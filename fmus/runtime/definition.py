@@ -67,6 +67,7 @@ class Port:
     description: str
     unit: Unit = None
     scalar: bool = False  #: named without index (requires size 1)
+    labels: list[str] | None = None  #: a name per element (``state_names`` of a plant): descriptions, summaries, plots
 
     @property
     def naming_shape(self) -> tuple[int, ...]:
@@ -75,6 +76,10 @@ class Port:
     @property
     def element_names(self) -> list[str]:
         return element_names(self.name, self.naming_shape)
+
+    def element_description(self, index: int) -> str:
+        """The description of element ``index``: the port's, with the element's name when it has one."""
+        return self.description if not self.labels else f"{self.description}: {self.labels[index]}"
 
 
 @dataclass

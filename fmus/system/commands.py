@@ -167,7 +167,8 @@ def _port_text(instance: str, port) -> str:
     """``plant.theta[1..8] (unit): description``: a port's columns, units and layout (issue 38)."""
     columns = f"{instance}.{port.name}" if port.size == 1 else f"{instance}.{port.name}[1..{port.size}]"
     unit = port.unit if isinstance(port.unit, str) else (", ".join(map(str, port.unit)) if port.unit else "")
-    return f"{columns}{f' ({unit})' if unit else ''}: {port.description}"
+    names = f" = [{', '.join(port.labels)}]" if port.labels else ""
+    return f"{columns}{f' ({unit})' if unit else ''}: {port.description}{names}"
 
 
 def _scenario_file(name: str) -> Path:

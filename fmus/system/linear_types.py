@@ -26,22 +26,30 @@ _UNITS = (
     Field("state_units", "units", "unit of the state (one, or one per state)", None, example='["A", "rad/s", "rad"]'),
     Field("input_units", "units", "unit of the input u", None, example='"V"'),
     Field("output_units", "units", "unit of the output y", None, example='"rad"'),
+    Field("state_names", "names", "a name per state (in FMU descriptions, summaries, figures, show); the CSV "
+          "columns keep plant.x[i]", None, example='["current", "speed", "angle"]'),
+    Field("input_names", "names", "a name per input", None, example='["voltage"]'),
+    Field("output_names", "names", "a name per output", None, example='["angle"]'),
 )
 _SAMPLE_TIME = Field("sample_time", "number", "sample time T: the plant is discrete, x[k+1] = ... (absent: "
                      "continuous)", None, "s", "0.01")
 
 
 def _expanded_units(values: dict, model: StateSpace) -> dict:
+    """Units (``state_units`` ...) one per entry, and the entries' names (``state_names`` ...) where given."""
     units = {}
-    for key, size in (("state_units", model.n), ("input_units", model.m), ("output_units", model.p)):
-        unit = values.get(key)
-        if unit is None:
-            continue
-        if isinstance(unit, str):
-            unit = [unit] * size
-        elif len(unit) != size:
-            raise ParameterError(f"{key}: expected {size} units (one per entry), got {len(unit)}")
-        units[key] = list(unit)
+    for kind, size in (("state", model.n), ("input", model.m), ("output", model.p)):
+        unit, names = values.get(f"{kind}_units"), values.get(f"{kind}_names")
+        if unit is not None:
+            if isinstance(unit, str):
+                unit = [unit] * size
+            elif len(unit) != size:
+                raise ParameterError(f"{kind}_units: expected {size} units (one per entry), got {len(unit)}")
+            units[f"{kind}_units"] = list(unit)
+        if names is not None:
+            if len(names) != size:
+                raise ParameterError(f"{kind}_names: expected {size} names (one per {kind}), got {len(names)}")
+            units[f"{kind}_names"] = list(names)
     return units
 
 

@@ -97,12 +97,23 @@ class SystemSpec:
         truth = np.column_stack([result[c] for c in compare["truth_columns"]])
         return estimate, truth
 
+    def labels(self) -> dict[str, str]:
+        """Column -> the name its plant gave the entry (``state_names`` ...): ``{"plant.x[1]": "current"}``."""
+        found = {}
+        for instance, component in self.components.items():
+            for definition in component.definitions:
+                for port in definition.outputs:
+                    if port.labels:
+                        found.update({f"{instance}.{name}": label
+                                      for name, label in zip(port.element_names, port.labels)})
+        return found
+
     def summarize(self, result):
         """Final error and convergence time per compared entry; the reference line (none, or the CSV's)."""
         from ..metrics import format_time, time_to_stay_below
         from ..scenarios import Summary
         lines, metrics = [], {}
-        unit = result.time_unit
+        unit, labels = result.time_unit, self.labels()
         for compare in self.compares:
             estimate, truth = self._pairs(result, compare)
             error = truth - estimate
@@ -112,7 +123,8 @@ class SystemSpec:
                 metrics[f"final_error {e_name}"] = final
                 metrics[f"convergence_time {e_name}"] = converged
                 column_unit = f" {result.unit(t_name)}" if result.unit(t_name) else ""
-                lines.append(f"{e_name} vs {t_name}: final |error| {final:.3g}{column_unit}, "
+                named = f" ({labels[t_name]})" if t_name in labels else ""
+                lines.append(f"{e_name} vs {t_name}{named}: final |error| {final:.3g}{column_unit}, "
                              f"below {compare['tolerance']:g} from {format_time(converged, unit)}")
         if not lines:
             lines.append("nothing compared (add [[report.compare]] tables with estimate and truth)")
@@ -138,19 +150,22 @@ class SystemSpec:
     def plot(self, result, path: Path) -> list[Path]:
         """Truth vs estimate per compared entry and the errors (log scale), with the FMUs' units."""
         from ..plotting import Curve, Panel, figure
-        panels, errors = [], []
+        panels, errors, limits, labels = [], [], set(), self.labels()
         key = 0                           # one colour per compared quantity, across every comparison
         for compare in self.compares:
             estimate, truth = self._pairs(result, compare)
             for j, (e_name, t_name) in enumerate(zip(compare["estimate_columns"], compare["truth_columns"])):
                 unit = result.unit(t_name)
-                panels.append(Panel(t_name, [Curve(t_name, result.time, truth[:, j], unit, "true", key),
+                title = f"{t_name} ({labels[t_name]})" if t_name in labels else t_name
+                panels.append(Panel(title, [Curve(t_name, result.time, truth[:, j], unit, "true", key),
                                              Curve(e_name, result.time, estimate[:, j], unit, "estimate", key)]))
                 errors.append(Curve(f"{t_name} - {e_name}", result.time, truth[:, j] - estimate[:, j], unit,
                                     "error", key))
                 key += 1
-            errors.append(Curve(f"tolerance {compare['tolerance']:g}", result.time,
-                                np.full(result.time.shape, compare["tolerance"]), role="limit"))
+            if compare["tolerance"] not in limits:         # one line per distinct tolerance (was one per comparison)
+                limits.add(compare["tolerance"])
+                errors.append(Curve(f"tolerance {compare['tolerance']:g}", result.time,
+                                    np.full(result.time.shape, compare["tolerance"]), role="limit"))
         panels.append(Panel("|error|", errors, log=True))
         return figure(path, f"{self.name}: {self.description}" if self.description else self.name, panels,
                       result.time_unit)

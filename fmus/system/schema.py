@@ -39,6 +39,7 @@ FIELD_TYPES = {
     "matrix": "a list of rows of one length, each entry a finite number or a constant expression (`\"-16000/250\"`, `\"2*pi\"`)",
     "poles": "a list of poles: numbers, or [re, im] pairs for complex ones",
     "units": "a unit (text), or a list of units, one per entry",
+    "names": "a list of distinct names (texts), one per entry",
     "expressions": "a list of expressions (texts, one per entry; see the expression language)",
     "expression": "one expression (a text), or a number",
     "expression-vector": "a list of expressions (texts) or numbers, one per entry",

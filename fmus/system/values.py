@@ -147,6 +147,21 @@ def _units(where: str, value):
     return check_text(where, value, limit=100)
 
 
+def _names(where: str, value) -> list[str]:
+    """Names of the entries of a port (``state_names``): distinct non-empty texts."""
+    if not isinstance(value, list) or not value:
+        raise ParameterError(f"{where}: expected a list of names (texts), one per entry, got {_shown(value)}")
+    if len(value) > MAX_DIMENSION:
+        raise ParameterError(f"{where}: {len(value)} names, more than the limit of {MAX_DIMENSION}")
+    names = [check_text(f"{where}[{i}]", v, limit=60) for i, v in enumerate(value, start=1)]
+    for i, name in enumerate(names, start=1):
+        if not name.strip():
+            raise ParameterError(f"{where}[{i}]: a name must not be empty")
+        if name in names[:i - 1]:
+            raise ParameterError(f"{where}[{i}]: {name!r} is named twice")
+    return names
+
+
 def _expressions(where: str, value) -> list[str]:
     if not isinstance(value, list) or not value:
         raise ParameterError(f"{where}: expected a list of expressions (texts), got {_shown(value)}")
@@ -217,6 +232,7 @@ _CHECKS = {
     "matrix": _matrix,
     "poles": _poles,
     "units": _units,
+    "names": _names,
     "expressions": _expressions,
     "expression": _expression,
     "expression-vector": _expression_vector,

@@ -95,6 +95,12 @@ def test_a_statespace_keeps_its_names_and_sample_time():
     component = obsfmu.from_statespace(discrete)
     assert component["sample_time"] == 0.01
     assert component["description"] == "tank: x = [level]; u = [valve]; y = [gauge]"
+    # issue 38: the names become the component's state/input/output names (FMU descriptions, summaries, figures);
+    # python-control's default labels (x[0], ...) are no names
+    assert (component["state_names"], component["input_names"], component["output_names"]) == \
+        (["level"], ["valve"], ["gauge"])
+    unnamed = obsfmu.from_statespace(control.ss([[0.5]], [[1.0]], [[2.0]], 0))
+    assert not {"state_names", "input_names", "output_names"} & set(unnamed)
     with pytest.raises(obsfmu.ParameterError, match="statespace: list has no matrix A"):
         obsfmu.from_statespace([1, 2])
 

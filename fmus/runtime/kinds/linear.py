@@ -86,9 +86,10 @@ def _model_parameters(model: StateSpace) -> list[Parameter]:
 
 
 def _signal_ports(model: StateSpace, units: dict) -> tuple[Port, Port]:
-    u = Port("u", model.m, "plant input u", _vector_unit(units, "input_units"), scalar=model.m == 1)
+    u = Port("u", model.m, "plant input u", _vector_unit(units, "input_units"), scalar=model.m == 1,
+             labels=units.get("input_names"))
     y = Port("y", model.p, "measured output y = C x + D u", _vector_unit(units, "output_units"),
-             scalar=model.p == 1)
+             scalar=model.p == 1, labels=units.get("output_names"))
     return u, y
 
 
@@ -116,7 +117,8 @@ def plant_definition(model_name: str, model: StateSpace, x0, units: dict, descri
             Parameter.of("x0", x0, "initial state x(0)", _vector_unit(units, "state_units")),
         ] + timing,
         inputs=[u],
-        outputs=[y, Port("x", model.n, "true state x", _vector_unit(units, "state_units"))],
+        outputs=[y, Port("x", model.n, "true state x", _vector_unit(units, "state_units"),
+                         labels=units.get("state_names"))],
     )
 
 
@@ -153,9 +155,10 @@ def observer_definition(model_name: str, model: StateSpace, N, x_hat0, units: di
         ],
         inputs=[u, y],
         outputs=[
-            Port("x_hat", model.n, "state estimate x_hat", _vector_unit(units, "state_units")),
+            Port("x_hat", model.n, "state estimate x_hat", _vector_unit(units, "state_units"),
+                 labels=units.get("state_names")),
             Port("y_hat", model.p, "output estimate C x_hat + D u", _vector_unit(units, "output_units"),
-                 scalar=model.p == 1),
+                 scalar=model.p == 1, labels=units.get("output_names")),
         ],
     )
 
@@ -172,8 +175,8 @@ def feedback_definition(model_name: str, K, units: dict, description: str) -> Fm
         description=description or "modal state feedback u = -K x_hat + r",
         parameters=[Parameter.of("K", K, "state-feedback gain (eig(A - B K) Hurwitz)", drop_axes=(0,))],
         inputs=[
-            Port("x_hat", n, "state estimate", _vector_unit(units, "state_units")),
-            Port("r", m, "reference input added to -K x_hat", u_unit, scalar=m == 1),
+            Port("x_hat", n, "state estimate", _vector_unit(units, "state_units"), labels=units.get("state_names")),
+            Port("r", m, "reference input added to -K x_hat", u_unit, scalar=m == 1, labels=units.get("input_names")),
         ],
-        outputs=[Port("u", m, "control u = -K x_hat + r", u_unit, scalar=m == 1)],
+        outputs=[Port("u", m, "control u = -K x_hat + r", u_unit, scalar=m == 1, labels=units.get("input_names"))],
     )

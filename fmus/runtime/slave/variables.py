@@ -32,7 +32,8 @@ class Variables:
                 self._register_mode(port.name)
         for port in definition.inputs:
             references = self._register_array(port.element_names, self._inputs[port.name], Fmi2Causality.input,
-                                              port.description, port.unit, on_set=self._input_changed)
+                                              [port.element_description(i) for i in range(port.size)], port.unit,
+                                              on_set=self._input_changed)
             self._input_elements.update({vr: (port.name, i, name)
                                          for i, (vr, name) in enumerate(zip(references, port.element_names))})
         for port in definition.outputs:
@@ -45,7 +46,8 @@ class Variables:
             def setter(value, i=i, name=name):
                 store[i] = value
                 on_set(name, value)
-            variable = Real(name, causality=causality, variability=variability, description=description,
+            text = description[i] if isinstance(description, list) else description     # per element, or one
+            variable = Real(name, causality=causality, variability=variability, description=text,
                             getter=lambda i=i: float(store[i]), setter=setter)
             self.register_variable(variable)
             references.append(variable.value_reference)
@@ -69,7 +71,8 @@ class Variables:
     def _register_outputs(self, port):
         for i, name in enumerate(port.element_names):
             variable = Real(name, causality=Fmi2Causality.output, variability=Fmi2Variability.continuous,
-                            description=port.description, getter=lambda p=port.name, i=i: self._output(p, i))
+                            description=port.element_description(i),
+                            getter=lambda p=port.name, i=i: self._output(p, i))
             self.register_variable(variable)
             self._output_offsets[variable.value_reference] = len(self._output_offsets)
             if element_unit(port.unit, i):
