@@ -100,5 +100,7 @@ def field_reference() -> str:
         "[[report.compare]]": ("What the summary and the figure compare (one table per pair). `[report]` may "
                                "also name `reference = \"file.csv\"`: a CSV of the run's columns to compare with.",
                                COMPARE_FIELDS),
+        "[plot]": ("What else the figure draws: `signals = [\"reference.y\", \"plant.x[2]\"]`, a panel per output "
+                   "(or element), with its units and names, beside the comparisons.", ()),
         "Limits": (limits, ()),
     })

@@ -160,3 +160,19 @@ def check_compares(compares: list[dict], components: dict) -> list[dict]:
         if compare["tolerance"] <= 0:
             raise ParameterError(f"report.compare[{i}].tolerance: must be > 0")
     return compares
+
+
+def check_plotted(signals, components: dict) -> list[list[str]]:
+    """``[plot] signals``: outputs (``component.output`` or ``component.output[i]``) drawn in panels of their own
+    beside the comparisons; the columns of each."""
+    if not isinstance(signals, list) or not all(isinstance(s, str) for s in signals):
+        raise ParameterError("plot.signals: expected a list of texts \"component.output\" or \"component.output[i]\"")
+    panels = []
+    for i, signal in enumerate(signals, start=1):
+        where = f"plot.signals[{i}]"
+        match = _REFERENCE.fullmatch(signal)
+        if not match:
+            raise ParameterError(f"{where}: expected component.output or component.output[i], got {signal!r:.60}")
+        panels.append([f"{match[1]}.{n}" for n in elements(where, components, *match.group(1, 2, 3), "output")])
+    return panels
+

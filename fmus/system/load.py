@@ -20,7 +20,7 @@ from obsfmu.observers.expressions import Names, Source, compile_expression
 
 from ..master import COUPLINGS, ORDERS
 from ..runtime.definition import Parameter
-from .connect import check_compares, check_connections, check_values, require_connected
+from .connect import check_compares, check_connections, check_plotted, check_values, require_connected
 from .locate import Locator
 from .model import ComponentSpec, SystemSpec
 from .kinds import component_type
@@ -65,7 +65,7 @@ COMPARE_FIELDS = (
     Field("tolerance", "number", "convergence time: from when |truth - estimate| stays below it", 1e-3,
           "(port's unit)", "1e-3"),
 )
-_SECTIONS = {"experiment", "components", "values", "report"}
+_SECTIONS = {"experiment", "components", "values", "report", "plot"}
 
 
 def _did_you_mean(name: str, known) -> str:
@@ -177,6 +177,13 @@ def _experiment(data: dict) -> dict:
     return values
 
 
+def _plotted(data: dict, components: dict) -> list[list[str]]:
+    """``[plot]``: ``signals``, the outputs drawn beside the comparisons (one panel each)."""
+    plot = _table("plot", data.get("plot", {}))
+    _unknown("plot.", plot, ("signals",))
+    return check_plotted(plot.get("signals", []), components)
+
+
 def _compares(data: dict) -> list[dict]:
     report = _table("report", data.get("report", {}))
     _unknown("report.", report, ("compare", "reference"))
@@ -275,12 +282,13 @@ def _parse(text: str, path: str, folder: Path, locator: Locator) -> SystemSpec:
     values = check_values(_table("values", data.get("values", {})), components, connections)
     require_connected(components, connections, values)
     compares = check_compares(_compares(data), components)
+    plotted = _plotted(data, components)
     reference = data.get("report", {}).get("reference")
     fastest = max(context.rates, default=None)
     _stamp_step_rate(components, fastest)
     return SystemSpec(top["name"], top["description"], top["time_unit"], components, connections, values,
                       experiment, compares, context.notes, path, None if reference is None else folder / reference,
-                      fastest)
+                      fastest, plotted)
 
 
 def _stamp_step_rate(components: dict, fastest: tuple[float, str] | None) -> None:

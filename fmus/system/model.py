@@ -47,6 +47,7 @@ class SystemSpec:
     path: str = ""
     reference: Path | None = None                     #: a CSV of the same columns to compare with
     fastest: tuple[float, str] | None = None          #: the fastest rate of its dynamics and signals, and whose
+    plotted: list[list[str]] = field(default_factory=list)   #: ``[plot] signals``: the columns of each panel
 
     def definitions(self) -> list:
         """Every component's FMU definitions; one without a DefaultExperiment gets the file's ``[experiment]``."""
@@ -76,7 +77,7 @@ class SystemSpec:
                         for instance, spec in self.components.items()],
             connections=list(self.connections), stop_time=experiment["stop_time"], step=experiment["step"],
             order=experiment["master"], coupling=experiment["coupling"], summarize=self.summarize,
-            plot=self.plot if self.compares else None, time_unit=self.time_unit,
+            plot=self.plot if self.compares or self.plotted else None, time_unit=self.time_unit,
             output_interval=experiment["output_interval"], measure=self.measure(), tolerance=experiment["tolerance"],
             ramp=experiment["ramp"], claim="",
             system_file=Path(self.path) if self.path else None, fastest=self.fastest)
@@ -166,6 +167,11 @@ class SystemSpec:
                 limits.add(compare["tolerance"])
                 errors.append(Curve(f"tolerance {compare['tolerance']:g}", result.time,
                                     np.full(result.time.shape, compare["tolerance"]), role="limit"))
-        panels.append(Panel("|error|", errors, log=True))
+        for columns in self.plotted:                     # [plot] signals: a panel each, named and with units
+            title = columns[0].rsplit("[", 1)[0] if len(columns) > 1 else columns[0]
+            panels.append(Panel(title, [Curve(c if c not in labels else f"{c} ({labels[c]})", result.time, result[c],
+                                              result.unit(c), "signal", key + k) for k, c in enumerate(columns)]))
+        if errors:
+            panels.append(Panel("|error|", errors, log=True))
         return figure(path, f"{self.name}: {self.description}" if self.description else self.name, panels,
                       result.time_unit)

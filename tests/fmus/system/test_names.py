@@ -69,3 +69,24 @@ def test_wrong_names_are_refused_naming_the_field(fields, message):
     with pytest.raises(ParameterError, match=message):
         parse_system(EXAMPLE.replace('output_units = "rad"\n', 'output_units = "rad"\n' + fields, 1),
                      str(ROOT / "examples" / "named.toml"))
+
+
+PLOT = '\n[plot]\nsignals = ["reference.y", "controller.u", "plant.x[2]"]\n'
+
+
+def test_a_plot_section_adds_panels_of_the_signals_it_names(tmp_path, build_dir):
+    """Issue 38: the figure drew the comparisons only (a road input or an actuator force never).  [plot] signals
+    adds a panel per output, with its units and names; a signal that is no output is refused naming it."""
+    spec = parse_system(NAMED + PLOT, str(ROOT / "examples" / "named.toml"))
+    assert spec.plotted == [["reference.y"], ["controller.u"], ["plant.x[2]"]]
+    (tmp_path / "named.toml").write_text(NAMED + PLOT)
+    done = subprocess.run([sys.executable, "-m", "obsfmu", "run", "--config", "named.toml", "--stop-time", "0.05",
+                           "--build-dir", str(build_dir), "--plot", "figure.png"], cwd=tmp_path, capture_output=True,
+                          text=True, timeout=600, env={**os.environ, "PYTHONPATH": str(ROOT)})
+    assert done.returncode == 0, done.stderr
+    svg = (tmp_path / "figure.svg").read_text()
+    assert "controller.u (voltage)" in svg and "plant.x[2] (speed)" in svg and "reference.y" in svg
+    with pytest.raises(ParameterError, match=r"plot.signals\[2\]: plant has no output 'z'; known: y, x"):
+        parse_system(NAMED + PLOT.replace('"controller.u"', '"plant.z"'), str(ROOT / "examples" / "named.toml"))
+    with pytest.raises(ParameterError, match=r"plot.panels: unknown field; known: signals"):
+        parse_system(NAMED + "\n[plot]\npanels = 1\n", str(ROOT / "examples" / "named.toml"))
