@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from obsfmu.observers.checks import ParameterError, require_hurwitz
+from obsfmu.observers.linearise import linearise
 from obsfmu.observers.lti_model import StateSpace
 from obsfmu.observers.modal import is_controllable, is_observable, observer_gain, place
 from obsfmu.observers.standard_forms import FORMS
@@ -17,6 +18,7 @@ from obsfmu.observers.standard_forms import FORMS
 from ..config import design_gain, require_bounded_transient
 from ..runtime.kinds.expression import expression_plant_definition
 from ..runtime.kinds.linear import feedback_definition, observer_definition, plant_definition
+from .inmemory import component_block
 from .schema import Context, Field, register
 from .values import MAX_DIMENSION
 
@@ -87,8 +89,8 @@ register("lti", "Linear plant `x' = A x + B u`, `y = C x + D u` (with `sample_ti
              _SAMPLE_TIME) + _UNITS, _define_lti)
 
 
-def _plant(values: dict, context: Context, kind: str) -> tuple[StateSpace, dict]:
-    """The lti component ``values["plant"]`` names: its model and units."""
+def _plant(values: dict, context: Context, kind: str, discrete: bool = False) -> tuple[StateSpace, dict]:
+    """The lti component ``values["plant"]`` names: its model and units (``discrete``: a sampled one accepted)."""
     name = values["plant"]
     other = context.others.get(name)
     if other is None or other[0] != "lti":
@@ -96,7 +98,7 @@ def _plant(values: dict, context: Context, kind: str) -> tuple[StateSpace, dict]
         raise ParameterError(f"{context.prefix}plant: {name!r} is {what}; the {kind} needs an lti component "
                              "defined before it")
     model = model_of(other[1], f"components.{name}.")
-    if model.discrete:
+    if model.discrete and not discrete:
         raise ParameterError(f"{context.prefix}plant: {name!r} is discrete (sample_time); the {kind} is designed "
                              "for a continuous lti plant")
     return model, _expanded_units(other[1], model)
@@ -144,11 +146,52 @@ def _checked_gain(context: Context, table: dict, model, gain: str, shape, design
     return G, poles
 
 
+def _linearised(values: dict, context: Context):
+    """An ``expression`` plant's model linearised at ``x_op``, ``u_op`` (checked, :mod:`observers.linearise`), its
+    units and names, and the observer's offsets ``(c, e)``."""
+    name, prefix = values["plant"], context.prefix
+    plant = component_block(name, context)
+    if plant.sample_time is not None:
+        raise ParameterError(f"{prefix}plant: {name!r} is a sampled expression plant; a luenberger observer is "
+                             "designed from a continuous one's linearisation")
+    n, m = plant.f.size, plant.input_sizes.get("u", 0)
+    if values["x_op"] is None:
+        raise ParameterError(f"{prefix}x_op: {name!r} is an expression plant; give the operating point x_op ({n} "
+                             "entries; and u_op) at which its linearisation designs the observer")
+    x_op = np.asarray(values["x_op"], dtype=float)
+    u_op = np.zeros(m) if values["u_op"] is None else np.asarray(values["u_op"], dtype=float)
+    for key, vector, size in (("x_op", x_op, n), ("u_op", u_op, m)):
+        if vector.size != size:
+            raise ParameterError(f"{prefix}{key}: expected {size} entries, got {vector.size}")
+    lin = linearise(plant.f, plant.h, x_op, u_op, plant.p, where=f"{prefix}x_op")
+    model = StateSpace.checked(lin.A, lin.B if m else None, lin.C, lin.D if m else None, prefix=prefix)
+    offsets = (lin.f0 - lin.A @ x_op - lin.B @ u_op, lin.y0 - lin.C @ x_op - lin.D @ u_op)
+    context.notes.append(f"{prefix.rstrip('.')}: {name!r} linearised at x = {matrix_text(x_op)}, u = "
+                         f"{matrix_text(u_op)}: A = {matrix_text(lin.A)}, C = {matrix_text(lin.C)}"
+                         + ("" if not np.any(lin.f0) else f"; f there = {matrix_text(lin.f0)} (not an equilibrium)"))
+    units = {key: list(value) if isinstance(value, list) else [value] * size
+             for key, size in (("state_units", n), ("input_units", m), ("output_units", model.p))
+             if (value := context.others[name][1].get(key)) is not None}
+    return model, units, offsets
+
+
 def _define_observer(model_name: str, values: dict, context: Context) -> list:
-    model, units = _plant(values, context, "luenberger observer")
+    offsets = None
+    if context.others.get(values["plant"], ("",))[0] == "expression":
+        model, units, offsets = _linearised(values, context)
+    else:
+        model, units = _plant(values, context, "luenberger observer", discrete=True)
     if not is_observable(model.A, model.C):
-        raise ParameterError(f"{context.prefix}plant: the pair (A, C) of {values['plant']!r} is not observable; "
-                             "no observer can reconstruct the state")
+        raise ParameterError(f"{context.prefix}plant: the pair (A, C) of {values['plant']!r} is not observable"
+                             f"{' at the operating point' if offsets else ''}; no observer can reconstruct the state")
+    if model.discrete:
+        table = _table(values, ("poles", "t_settle", "shift", "form", "N"))
+        return [_discrete_observer(model_name, values, context, model, units, table)]
+    return [_continuous_observer(model_name, values, context, model, units, offsets)]
+
+
+def _continuous_observer(model_name: str, values: dict, context: Context, model, units: dict, offsets=None):
+    """The observer of a continuous model (an lti plant's, or a linearisation's with its ``offsets``)."""
     table = _table(values, ("poles", "t_settle", "shift", "form", "N"))
     if values["Q"] is not None or values["R"] is not None:
         N, poles, table = _kalman(values, context, model, table), None, {}
@@ -160,7 +203,7 @@ def _define_observer(model_name: str, values: dict, context: Context) -> list:
     if np.size(x_hat0) != model.n:
         raise ParameterError(f"{context.prefix}x_hat0: expected {model.n} entries, got {np.size(x_hat0)}")
     poles = np.linalg.eigvals(model.A - N @ model.C) if poles is None else poles
-    design = _design(table) if values["tunable"] else None
+    design = _design(table) if values["tunable"] and offsets is None else None
     scipy_needed = design is not None and (model.p > 1 or (design[0] == "t_settle" and design[2] != "binomial"))
     if scipy_needed:
         # several outputs (scipy's place_poles) or the Butterworth form (its settling time from scipy's step
@@ -169,7 +212,7 @@ def _define_observer(model_name: str, values: dict, context: Context) -> list:
                              "which an FMU does not carry: tunable designs are single-output poles, shift or "
                              "binomial t_settle)")
         design = None
-    return [observer_definition(model_name, model, N, x_hat0, units, values["description"], poles, design)]
+    return observer_definition(model_name, model, N, x_hat0, units, values["description"], poles, design, offsets)
 
 
 def _covariance(where: str, value, size: int, definite: bool, what: str = "covariance") -> np.ndarray:
@@ -233,6 +276,51 @@ def _lqr(values: dict, context: Context, model, table: dict) -> np.ndarray:
     return K
 
 
+def _discrete_observer(model_name: str, values: dict, context: Context, model, units: dict, table: dict):
+    """The predictor x_hat[k+1] = A x_hat + B u + N (y - C x_hat - D u) of a sampled plant: N given, or the
+    steady-state discrete Kalman gain of Q and R (the continuous designs poles, t_settle, shift do not apply)."""
+    prefix = context.prefix
+    if table.keys() & {"poles", "t_settle", "shift"}:
+        raise ParameterError(f"{prefix}poles: {values['plant']!r} is discrete (sample_time); give N (A - N C "
+                             "Schur-stable) or Q and R (the discrete Kalman gain), not poles, t_settle or shift")
+    if values["Q"] is not None or values["R"] is not None:
+        N = _discrete_kalman(values, context, model, table)
+    elif "N" in table:
+        N = table["N"]
+    else:
+        raise ParameterError(f"{prefix}N: {values['plant']!r} is discrete (sample_time); give N or Q and R")
+    x_hat0 = np.zeros(model.n) if values["x_hat0"] is None else values["x_hat0"]
+    if np.size(x_hat0) != model.n:
+        raise ParameterError(f"{prefix}x_hat0: expected {model.n} entries, got {np.size(x_hat0)}")
+    try:
+        N = np.asarray(N, dtype=float).reshape(model.n, model.p)
+    except ValueError:
+        raise ParameterError(f"{prefix}N: expected {model.n} x {model.p} (n x p), got shape {np.shape(N)}") from None
+    poles = np.linalg.eigvals(model.A - N @ model.C)
+    if not np.max(np.abs(poles)) < 1.0:
+        raise ParameterError(f"{prefix}N: eig(A - N C) = [{poles_text(poles)}] not all inside the unit circle; a "
+                             "discrete observer's error e[k+1] = (A - N C) e[k] must decay")
+    context.notes.append(f"{prefix.rstrip('.')}: N = {matrix_text(N)}; eig(A - N C) = [{poles_text(poles)}] "
+                         "(discrete: |.| < 1)")
+    return observer_definition(model_name, model, N, x_hat0, units, values["description"], poles, None)
+
+
+def _discrete_kalman(values: dict, context: Context, model, table: dict) -> np.ndarray:
+    """The steady-state Kalman gain of the predictor, N = A P C' (C P C' + R)^-1, P the stabilising solution of
+    the discrete Riccati equation P = A P A' - A P C' (C P C' + R)^-1 C P A' + Q (process noise on every state)."""
+    from scipy.linalg import solve_discrete_are
+    prefix = context.prefix
+    _riccati_request(values, prefix, table, "N")
+    Q = _covariance(f"{prefix}Q", values["Q"], model.n, definite=False)
+    R = _covariance(f"{prefix}R", values["R"], model.p, definite=True)
+    try:
+        P = solve_discrete_are(model.A.T, model.C.T, Q, R)
+    except (np.linalg.LinAlgError, ValueError) as exc:
+        raise ParameterError(f"{prefix}Q, R: the discrete Riccati equation has no stabilising solution ({exc})") \
+            from None
+    return model.A @ P @ model.C.T @ np.linalg.inv(model.C @ P @ model.C.T + R)
+
+
 def _design(table: dict):
     """The design the FMU carries as a parameter and designs its gain from at initialisation (``--set``,
     ``--vary`` and importers can change it), or None: the gain itself (given, or complex poles)."""
@@ -247,12 +335,18 @@ def _design(table: dict):
 
 
 register("luenberger", "Luenberger observer of an lti component: `x_hat' = A x_hat + B u + N (y - C x_hat - D u)`. "
-         "Give exactly one of `poles`, `t_settle` (with `form`), `shift` or `N`. Inputs `u`, `y`; outputs `x_hat`, "
-         "`y_hat`.", _design_fields("N", "n x p", "observer") + (
+         "Give exactly one of `poles`, `t_settle` (with `form`), `shift`, `N`, or the noise covariances `Q` and `R` "
+         "(the steady-state Kalman gain). For a sampled plant (`sample_time`) the predictor `x_hat[k+1] = A x_hat + "
+         "B u + N (y - C x_hat - D u)` at `t = k T`, with `N` or `Q` and `R` (discrete Kalman). Inputs `u`, `y`; "
+         "outputs `x_hat`, `y_hat`.", _design_fields("N", "n x p", "observer") + (
              Field("x_hat0", "vector", "initial estimate (absent: zero)", None, example="[0, 0]"),
              Field("Q", "matrix", "process noise covariance (n x n, entering every state): with R, the "
                    "steady-state Kalman gain (LQE) instead of poles", None, example="[[0, 0], [0, 1]]"),
              Field("R", "matrix", "measurement noise covariance (p x p, positive definite)", None, example="[[1e-4]]"),
+             Field("x_op", "vector", "for an expression plant: the state of the operating point whose linearisation "
+                   "(numerical Jacobians, checked) the observer is designed from", None, example="[0, 0]"),
+             Field("u_op", "vector", "for an expression plant: the input there (absent: zero)", None,
+                   example="[0]"),
              Field("tunable", "boolean", "the design (`t_settle`, `shift` or real `poles`) is the FMU's parameter "
                    "and N is designed from it at initialisation (`--set`, `--vary`, importers change it); false, "
                    "or a plant with several outputs, or the butterworth form: N itself is the parameter", True,

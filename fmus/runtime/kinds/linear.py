@@ -32,7 +32,12 @@ def _lti_plant(p, options):
 @register("luenberger-observer")
 def _luenberger(p, options):
     N = p["N"] if "N" in p else _designed_gain(p, options)
-    return LuenbergerObserver(p["A"], p["B"], p["C"], N, p["x_hat0"], p["D"])
+    offsets = {key: p[key] for key in ("offset", "output_offset") if key in p}     # a linearised model's
+    if "sample_time" in p:              # discrete: the predictor x_hat[k+1] = A x_hat + B u + N (y - C x_hat - D u)
+        model = StateSpace.checked(p["A"], p["B"], p["C"], p["D"], dt=float(p["sample_time"]))
+        return LuenbergerObserver(model, N=N, x_hat0=p["x_hat0"], substep_budget=float(p["substep_budget"]),
+                                  **offsets)
+    return LuenbergerObserver(p["A"], p["B"], p["C"], N, p["x_hat0"], p["D"], **offsets)
 
 
 #: the design parameters an observer FMU may carry instead of its gain N (computed at initialisation)
@@ -93,6 +98,14 @@ def _signal_ports(model: StateSpace, units: dict) -> tuple[Port, Port]:
     return u, y
 
 
+def _timing(model: StateSpace, substep_budget=None) -> list[Parameter]:
+    """A discrete model's ``sample_time`` and ``substep_budget`` parameters (none for a continuous one)."""
+    if not model.discrete:
+        return []
+    return [Parameter.scalar("sample_time", model.dt, "sample time T of x[k+1] = A x[k] + B u[k]", "s"),
+            Parameter.substep_budget(substep_budget)]
+
+
 def plant_definition(model_name: str, model: StateSpace, x0, units: dict, description: str,
                      substep_budget=None) -> FmuDefinition:
     """LTI plant FMU: parameters A, B, C, D, x0; input u; outputs y and the true state x.
@@ -102,10 +115,7 @@ def plant_definition(model_name: str, model: StateSpace, x0, units: dict, descri
     input at ``t_k``.  A continuous model's FMU has neither (and is what it always was).
     """
     u, y = _signal_ports(model, units)
-    timing = []
-    if model.discrete:
-        timing = [Parameter.scalar("sample_time", model.dt, "sample time T of x[k+1] = A x[k] + B u[k]", "s"),
-                  Parameter.substep_budget(substep_budget)]
+    timing = _timing(model, substep_budget)
     law = "x[k+1] = A x[k] + B u[k], y = C x + D u (a step covers whole samples)" if model.discrete else \
         "x' = A x + B u, y = C x + D u (exact step for linear inputs)"
     return FmuDefinition(
@@ -137,9 +147,10 @@ def _design_parameter(design, N) -> Parameter:
 
 
 def observer_definition(model_name: str, model: StateSpace, N, x_hat0, units: dict,
-                        description: str, poles, design=None) -> FmuDefinition:
+                        description: str, poles, design=None, offsets=None) -> FmuDefinition:
     """Luenberger observer FMU: parameters A, B, C, D, N (or the ``design`` it is computed from at
-    initialisation: ``(name, value, form)``, name one of :data:`DESIGNS`), x_hat0; inputs u, y; outputs x_hat, y_hat."""
+    initialisation: ``(name, value, form)``, name one of :data:`DESIGNS`), x_hat0; inputs u, y; outputs x_hat, y_hat.
+    ``offsets``: ``(c, e)`` of a model linearised at an operating point (:mod:`observers.luenberger`)."""
     u, y = _signal_ports(model, units)
     poles_text = ", ".join(f"{complex(p):.6g}".strip("()").replace("+0j", "") for p in poles)
     return FmuDefinition(
@@ -147,12 +158,18 @@ def observer_definition(model_name: str, model: StateSpace, N, x_hat0, units: di
         kind="luenberger-observer",
         feedthrough=bool(np.any(model.D)),
         options={} if design is None else {"design": design[0], "form": design[2]},
-        description=description or f"Luenberger observer x_hat' = A x_hat + B u + N (y - C x_hat - D u), "
-                                   f"eig(A - N C) = [{poles_text}]",
+        description=description or ("discrete Luenberger observer x_hat[k+1] = A x_hat + B u + N (y - C x_hat - D u)"
+                                    if model.discrete else "Luenberger observer x_hat' = A x_hat + B u + N (y - C x_hat "
+                                    "- D u)") + f", eig(A - N C) = [{poles_text}]",
         parameters=_model_parameters(model) + [
             _design_parameter(design, N),
             Parameter.of("x_hat0", x_hat0, "initial estimate x_hat(0)", _vector_unit(units, "state_units")),
-        ],
+        ] + _timing(model) + ([] if offsets is None else [
+            Parameter.of("offset", offsets[0], "c = f(x_0, u_0) - A x_0 - B u_0 of the model linearised at the "
+                         "operating point (x_hat' = A x_hat + B u + N (y - y_hat) + c)"),
+            Parameter.of("output_offset", offsets[1], "e = h(x_0, u_0) - C x_0 - D u_0 (y_hat = C x_hat + D u + e)",
+                         drop_axes=(0,) if model.p == 1 else ()),
+        ]),
         inputs=[u, y],
         outputs=[
             Port("x_hat", model.n, "state estimate x_hat", _vector_unit(units, "state_units"),
