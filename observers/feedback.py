@@ -1,4 +1,7 @@
-"""Static state feedback ``u = -K x_hat + r`` (paper 002, eq. (4))."""
+"""State feedback: static ``u = -K x_hat + r`` (paper 002, eq. (4)), or with integral action on the output error,
+``u = -K x_hat - K_i z``, ``z' = y - r``: in steady state ``z' = 0``, so ``y = r`` whatever a constant
+disturbance or model error (the classical servo design: the gains place the poles of the augmented loop
+``[[A, 0], [C, 0]] - [[B], [0]] [K, K_i]``)."""
 
 from __future__ import annotations
 
@@ -7,9 +10,9 @@ from typing import Mapping
 import numpy as np
 
 from .block import Block, Segment
-from .checks import as_matrix
+from .checks import ParameterError, as_matrix, as_vector
 
-__all__ = ["StateFeedback"]
+__all__ = ["StateFeedback", "IntegralStateFeedback"]
 
 
 class StateFeedback(Block):
@@ -34,3 +37,35 @@ class StateFeedback(Block):
 
     def advance(self, t: float, h: float, inputs: Mapping[str, Segment]) -> None:
         """Nothing to integrate: the block is static."""
+
+
+class IntegralStateFeedback(Block):
+    """``u = -K x_hat - K_i z``, ``z' = y - r``; ``K`` is ``(m, n)``, ``K_i`` ``(m, p)``.
+
+    Ports: inputs ``x_hat`` (n), ``y`` (p, the measured output), ``r`` (p, its reference); output ``u`` (m).
+    ``z`` (p) is the integral of ``y - r``, advanced exactly for inputs linear over a step; ``u`` depends on the
+    current ``x_hat`` (direct feedthrough), ``y`` and ``r`` act through ``z`` only.
+    """
+
+    feedthrough = True
+    not_state = ("K", "K_i")
+
+    def __init__(self, K, K_i, z0=None):
+        self.K = as_matrix("K", K)
+        m, n = self.K.shape
+        self.K_i = as_matrix("K_i", K_i)
+        if self.K_i.shape[0] != m:
+            raise ParameterError(f"K_i: expected {m} rows (one per input, as K), got {self.K_i.shape[0]}")
+        p = self.K_i.shape[1]
+        self.z = np.zeros(p) if z0 is None else as_vector("z0", z0, p)
+        self.input_sizes = {"x_hat": n, "y": p, "r": p}
+        self.output_sizes = {"u": m}
+
+    def outputs(self, t: float, inputs: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+        return {"u": -self.K @ inputs["x_hat"] - self.K_i @ self.z}
+
+    def advance(self, t: float, h: float, inputs: Mapping[str, Segment]) -> None:
+        """``z(t + h) = z + h e(t) + h^2 / 2 e'``, ``e = y - r`` linear over the step (exact)."""
+        y, r = inputs["y"], inputs["r"]
+        self.z = self.z + h * (y.start - r.start) + 0.5 * h * h * (y.slope - r.slope)
+

@@ -17,7 +17,8 @@ from obsfmu.observers.standard_forms import FORMS
 
 from ..config import design_gain, require_bounded_transient
 from ..runtime.kinds.expression import expression_plant_definition
-from ..runtime.kinds.linear import feedback_definition, observer_definition, plant_definition
+from ..runtime.kinds.linear import (feedback_definition, integral_feedback_definition, observer_definition,
+                                   plant_definition)
 from .inmemory import component_block
 from .schema import Context, Field, register
 from .values import MAX_DIMENSION
@@ -362,21 +363,46 @@ def _define_feedback(model_name: str, values: dict, context: Context) -> list:
         raise ParameterError(f"{context.prefix}plant: the pair (A, B) of {values['plant']!r} is not controllable; "
                              "state feedback cannot place the poles")
     table = _table(values, ("poles", "t_settle", "shift", "form", "K"))
+    design = _augmented(model, values, context) if values["integral"] else model
     if values["Q"] is not None or values["R"] is not None:
-        K = _lqr(values, context, model, table)
+        K = _lqr(values, context, design, table)
     else:
-        K, _ = _checked_gain(context, table, model, "K", (model.m, model.n),
-                             lambda p, name: place(model.A, model.B, p, name),
-                             lambda K: model.A - model.B @ K, "A - B K")
-    return [feedback_definition(model_name, K, units, values["description"])]
+        K, _ = _checked_gain(context, table, design, "K", (design.m, design.n),
+                             lambda p, name: place(design.A, design.B, p, name),
+                             lambda K: design.A - design.B @ K, "A - B K" if design is model else "A_a - B_a K")
+    if not values["integral"]:
+        return [feedback_definition(model_name, K, units, values["description"])]
+    K = np.asarray(K, dtype=float).reshape(design.m, design.n)
+    return [integral_feedback_definition(model_name, K[:, :model.n], K[:, model.n:], units, values["description"])]
+
+
+def _augmented(model, values: dict, context: Context) -> StateSpace:
+    """The plant with the integrators of its output error, ``[x; z]' = [[A, 0], [C, 0]] [x; z] + [[B], [0]] u``:
+    its gain ``[K, K_i]`` (``n + p`` poles, or Q of that size) gives integral action."""
+    n, p = model.n, model.p
+    A = np.block([[model.A, np.zeros((n, p))], [model.C, np.zeros((p, p))]])
+    B = np.vstack([model.B, np.zeros((p, model.m))])
+    if np.any(model.D):
+        raise ParameterError(f"{context.prefix}integral: {values['plant']!r} has a feedthrough D; integral action is "
+                             "designed here for y = C x")
+    if not is_controllable(A, B):
+        raise ParameterError(f"{context.prefix}integral: the plant with the integrators of y - r is not controllable "
+                             f"(more outputs ({p}) than inputs ({model.m}), or a zero of the plant at s = 0): no "
+                             "integral action can hold y at r")
+    return StateSpace.checked(A, B, np.hstack([model.C, np.zeros((p, p))]), prefix=context.prefix)
 
 
 register("state-feedback", "State feedback `u = -K x_hat + r` for an lti component. Give exactly one of `poles`, "
-         "`t_settle` (with `form`), `shift`, `K`, or the LQR weights `Q` and `R`. Inputs `x_hat`, `r`; output `u`.",
+         "`t_settle` (with `form`), `shift`, `K`, or the LQR weights `Q` and `R`. Inputs `x_hat`, `r`; output `u`. "
+         "With `integral = true`: `u = -K x_hat - K_i z`, `z' = y - r` (inputs `x_hat`, `y`, `r`; `K` of the plant "
+         "augmented with the integrators, n + p).",
          _design_fields("K", "m x n", "closed-loop") + (
              Field("Q", "matrix", "LQR state weight (n x n, symmetric positive semidefinite): with R, the gain K = "
                    "R^-1 B' P minimising int x' Q x + u' R u, instead of poles", None, example="[[10, 0], [0, 1]]"),
              Field("R", "matrix", "LQR input weight (m x m, symmetric positive definite)", None, example="[[0.1]]"),
+             Field("integral", "boolean", "integral action: u = -K x_hat - K_i z, z' = y - r (inputs x_hat, y, r; "
+                   "r is then the reference of y, tracked without steady-state error); the design (n + p poles, or "
+                   "Q of n + p) is that of the plant augmented with the integrators", False, example="true"),
          ), _define_feedback, depends=("plant",))
 
 

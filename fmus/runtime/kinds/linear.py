@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from obsfmu.observers.feedback import StateFeedback
+from obsfmu.observers.feedback import IntegralStateFeedback, StateFeedback
 from obsfmu.observers.luenberger import LuenbergerObserver
 from obsfmu.observers.checks import ParameterError
 from obsfmu.observers.lti_model import StateSpace
@@ -18,7 +18,8 @@ from obsfmu.plants.lti import LTIPlant
 from ..definition import FmuDefinition, Parameter, Port
 from . import register
 
-__all__ = ["plant_definition", "observer_definition", "feedback_definition", "vector_unit"]
+__all__ = ["plant_definition", "observer_definition", "feedback_definition", "integral_feedback_definition",
+           "vector_unit"]
 
 
 @register("lti-plant")
@@ -67,6 +68,11 @@ def _designed_gain(p, options) -> np.ndarray:
 @register("state-feedback")
 def _state_feedback(p, options):
     return StateFeedback(p["K"])
+
+
+@register("integral-state-feedback")
+def _integral_state_feedback(p, options):
+    return IntegralStateFeedback(p["K"], p["K_i"])
 
 
 def vector_unit(values):
@@ -197,3 +203,26 @@ def feedback_definition(model_name: str, K, units: dict, description: str) -> Fm
         ],
         outputs=[Port("u", m, "control u = -K x_hat + r", u_unit, scalar=m == 1, labels=units.get("input_names"))],
     )
+
+
+def integral_feedback_definition(model_name: str, K, K_i, units: dict, description: str) -> FmuDefinition:
+    """State feedback with integral action FMU: ``u = -K x_hat - K_i z``, ``z' = y - r`` (observers.feedback)."""
+    K, K_i = np.asarray(K, dtype=float), np.asarray(K_i, dtype=float)
+    (m, n), p = K.shape, K_i.shape[1]
+    u_unit, y_unit = _vector_unit(units, "input_units"), _vector_unit(units, "output_units")
+    return FmuDefinition(
+        model_name=model_name,
+        kind="integral-state-feedback",
+        feedthrough=True,
+        description=description or "state feedback with integral action u = -K x_hat - K_i z, z' = y - r",
+        parameters=[Parameter.of("K", K, "state-feedback gain", drop_axes=(0,)),
+                    Parameter.of("K_i", K_i, "integral gain on z = int (y - r) dt", drop_axes=(0, 1))],
+        inputs=[
+            Port("x_hat", n, "state estimate", _vector_unit(units, "state_units"), labels=units.get("state_names")),
+            Port("y", p, "measured output y", y_unit, scalar=p == 1, labels=units.get("output_names")),
+            Port("r", p, "reference of y (tracked without steady-state error)", y_unit, scalar=p == 1,
+                 labels=units.get("output_names")),
+        ],
+        outputs=[Port("u", m, "control u = -K x_hat - K_i z", u_unit, scalar=m == 1, labels=units.get("input_names"))],
+    )
+
