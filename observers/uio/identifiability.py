@@ -8,7 +8,7 @@ measured here along the file's own experiment -- the plant's ``y`` from its ``x(
 
 1. **Rank.** Where (17) is exact, its rows must span all ``p_2`` unknowns.  With both feedback
    parameters of a companion-form plant unknown, the rows lose one dimension once the filters'
-   transients are gone (``s_min / s_max`` 4e-14 against 0.06 for the paper's example): the estimates
+   transients are gone (``s_min / s_max`` 5.9e-15 against 0.056 for the paper's example): the estimates
    then settle at wrong values (``omega`` 34.8 against 3) and the identification test even says
    "identified".  The unidentifiable direction (the right singular vector of ``s_min``) names the
    unknowns.
@@ -21,8 +21,8 @@ Where (17) is exact.  Its error decays like the filters (``lambda_2``, ``lambda_
 ``x_tilde(0)`` that stage 1 cannot see -- along the plant's invariant zeros, kept in ``F``
 (:mod:`~observers.uio.design`).  The run knows the plant's true ``xi(0)`` and frequencies, so it measures
 that error, ``Y - phi^T k_2``, and takes as exact the part of the run from which it stays below
-``EXACT_LEVEL`` of the signals (the rank test does not depend on it: the rows are functions of ``y`` alone).  With ``m_u >= 1`` unknown entries of ``xi(0)`` stage 2 has
-``m_u + N + N m_u > 2N`` unknowns, while in steady state ``y`` is a sum of ``N`` sinusoids (``2N``
+``EXACT_LEVEL`` of the signals (the rank test does not depend on it: the rows are functions of ``y``
+alone).  With ``m_u >= 1`` unknown entries of ``xi(0)`` stage 2 has ``m_u + N + N m_u > 2N`` unknowns, while in steady state ``y`` is a sum of ``N`` sinusoids (``2N``
 dimensions): identification rests on the plant's own transient, which must outlast the regression's.
 Both findings are necessary conditions: a file that passes may still converge slowly.
 
