@@ -31,8 +31,8 @@ _fallback: list[Path] = []               # the private temporary cache of this p
 
 
 def obsfmu_cache() -> Path:
-    """``$OBSFMU_CACHE`` (default ``~/.cache/obsfmu``): the extracted FMUs, the API's systems and builds."""
-    return Path(os.environ.get("OBSFMU_CACHE") or Path.home() / ".cache" / "obsfmu")
+    """``$OBSFMU_CACHE`` (default :func:`cache_root`): the extracted FMUs, the API's systems and builds."""
+    return Path(os.environ.get("OBSFMU_CACHE") or cache_root())
 
 
 def default_build_dir(root: Path | None = None) -> Path:

@@ -12,7 +12,7 @@ import numpy as np
 from .block import Block, Segment
 from .checks import ParameterError, as_matrix, as_vector
 
-__all__ = ["StateFeedback", "IntegralStateFeedback"]
+__all__ = ["StateFeedback", "IntegralStateFeedback", "integral_augmented"]
 
 
 class StateFeedback(Block):
@@ -69,3 +69,14 @@ class IntegralStateFeedback(Block):
         y, r = inputs["y"], inputs["r"]
         self.z = self.z + h * (y.start - r.start) + 0.5 * h * h * (y.slope - r.slope)
 
+
+
+def integral_augmented(A, B, C) -> tuple[np.ndarray, np.ndarray]:
+    """The plant with the integrators of its output error, ``[x; z]' = A_a [x; z] + B_a u``,
+    ``A_a = [[A, 0], [C, 0]]``, ``B_a = [[B], [0]]``: a gain ``[K, K_i]`` placing ``eig(A_a - B_a [K, K_i])``
+    is the integral action of :class:`IntegralStateFeedback`."""
+    A, C = np.atleast_2d(np.asarray(A, dtype=float)), np.atleast_2d(np.asarray(C, dtype=float))
+    n, p = A.shape[0], C.shape[0]
+    B = np.asarray(B, dtype=float).reshape(n, -1)
+    return (np.block([[A, np.zeros((n, p))], [C, np.zeros((p, p))]]),
+            np.vstack([B, np.zeros((p, B.shape[1]))]))

@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from obsfmu.observers.checks import ParameterError, require_hurwitz
+from obsfmu.observers.feedback import integral_augmented
 from obsfmu.observers.linearise import linearise
 from obsfmu.observers.lti_model import StateSpace
 from obsfmu.observers.modal import is_controllable, is_observable, observer_gain, place
@@ -204,15 +205,7 @@ def _continuous_observer(model_name: str, values: dict, context: Context, model,
     if np.size(x_hat0) != model.n:
         raise ParameterError(f"{context.prefix}x_hat0: expected {model.n} entries, got {np.size(x_hat0)}")
     poles = np.linalg.eigvals(model.A - N @ model.C) if poles is None else poles
-    design = _design(table) if values["tunable"] and offsets is None else None
-    scipy_needed = design is not None and (model.p > 1 or (design[0] == "t_settle" and design[2] != "binomial"))
-    if scipy_needed:
-        # several outputs (scipy's place_poles) or the Butterworth form (its settling time from scipy's step
-        # response): an FMU carries numpy only, so N itself stays its parameter
-        context.notes.append(f"{context.prefix.rstrip('.')}: N is the FMU's parameter (this design needs scipy, "
-                             "which an FMU does not carry: tunable designs are single-output poles, shift or "
-                             "binomial t_settle)")
-        design = None
+    design = _carried_design(values, table, context, "N", model.p, "output") if offsets is None else None
     return observer_definition(model_name, model, N, x_hat0, units, values["description"], poles, design, offsets)
 
 
@@ -322,6 +315,26 @@ def _discrete_kalman(values: dict, context: Context, model, table: dict) -> np.n
     return model.A @ P @ model.C.T @ np.linalg.inv(model.C @ P @ model.C.T + R)
 
 
+def _carried_design(values: dict, table: dict, context: Context, gain: str, channels: int, channel: str):
+    """The design the FMU carries as its parameter (``tunable``), or None: the gain itself is.  Several
+    outputs (inputs) need scipy's place_poles and the Butterworth form scipy's step response; an FMU carries
+    numpy only, so their gain stays the parameter (said in the build's notes)."""
+    design = _design(table) if values["tunable"] else None
+    if design is not None and (channels > 1 or (design[0] == "t_settle" and design[2] != "binomial")):
+        context.notes.append(f"{context.prefix.rstrip('.')}: {gain} is the FMU's parameter (this design needs scipy, "
+                             f"which an FMU does not carry: tunable designs are single-{channel} poles, shift or "
+                             "binomial t_settle)")
+        return None
+    return design
+
+
+def _tunable(gain: str, channel: str) -> Field:
+    return Field("tunable", "boolean", f"the design (`t_settle`, `shift` or real `poles`) is the FMU's parameter "
+                 f"and {gain} is designed from it at initialisation (`--set`, `--vary`, importers change it); false, "
+                 f"or a plant with several {channel}s, or the butterworth form: {gain} itself is the parameter", True,
+                 example="false")
+
+
 def _design(table: dict):
     """The design the FMU carries as a parameter and designs its gain from at initialisation (``--set``,
     ``--vary`` and importers can change it), or None: the gain itself (given, or complex poles)."""
@@ -348,10 +361,7 @@ register("luenberger", "Luenberger observer of an lti component: `x_hat' = A x_h
                    "(numerical Jacobians, checked) the observer is designed from", None, example="[0, 0]"),
              Field("u_op", "vector", "for an expression plant: the input there (absent: zero)", None,
                    example="[0]"),
-             Field("tunable", "boolean", "the design (`t_settle`, `shift` or real `poles`) is the FMU's parameter "
-                   "and N is designed from it at initialisation (`--set`, `--vary`, importers change it); false, "
-                   "or a plant with several outputs, or the butterworth form: N itself is the parameter", True,
-                   example="false"),),
+             _tunable("N", "output"),),
          _define_observer, depends=("plant",))
 
 
@@ -370,18 +380,19 @@ def _define_feedback(model_name: str, values: dict, context: Context) -> list:
         K, _ = _checked_gain(context, table, design, "K", (design.m, design.n),
                              lambda p, name: place(design.A, design.B, p, name),
                              lambda K: design.A - design.B @ K, "A - B K" if design is model else "A_a - B_a K")
+    carried = _carried_design(values, table, context, "K", model.m, "input")
     if not values["integral"]:
-        return [feedback_definition(model_name, K, units, values["description"])]
+        return [feedback_definition(model_name, K, units, values["description"], carried, model)]
     K = np.asarray(K, dtype=float).reshape(design.m, design.n)
-    return [integral_feedback_definition(model_name, K[:, :model.n], K[:, model.n:], units, values["description"])]
+    return [integral_feedback_definition(model_name, K[:, :model.n], K[:, model.n:], units, values["description"],
+                                         carried, model)]
 
 
 def _augmented(model, values: dict, context: Context) -> StateSpace:
     """The plant with the integrators of its output error, ``[x; z]' = [[A, 0], [C, 0]] [x; z] + [[B], [0]] u``:
     its gain ``[K, K_i]`` (``n + p`` poles, or Q of that size) gives integral action."""
-    n, p = model.n, model.p
-    A = np.block([[model.A, np.zeros((n, p))], [model.C, np.zeros((p, p))]])
-    B = np.vstack([model.B, np.zeros((p, model.m))])
+    p = model.p
+    A, B = integral_augmented(model.A, model.B, model.C)
     if np.any(model.D):
         raise ParameterError(f"{context.prefix}integral: {values['plant']!r} has a feedthrough D; integral action is "
                              "designed here for y = C x")
@@ -403,6 +414,7 @@ register("state-feedback", "State feedback `u = -K x_hat + r` for an lti compone
              Field("integral", "boolean", "integral action: u = -K x_hat - K_i z, z' = y - r (inputs x_hat, y, r; "
                    "r is then the reference of y, tracked without steady-state error); the design (n + p poles, or "
                    "Q of n + p) is that of the plant augmented with the integrators", False, example="true"),
+             _tunable("K", "input"),
          ), _define_feedback, depends=("plant",))
 
 

@@ -26,6 +26,8 @@ def system(**controller):
 
 
 def gains(built, tmp_path):
+    """K, K_i as the build designs them (tunable = false: the FMU carries the gains) and the loaded system."""
+    built.components["controller"]["tunable"] = False
     spec = obsfmu._internals.load_system(built.save(tmp_path / "servo.toml"))
     values = {p.name: np.array(p.value) for p in spec.components["controller"].definitions[0].parameters}
     return values["K"].reshape(1, 3), values["K_i"].reshape(1, 1), spec

@@ -8,11 +8,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from obsfmu.observers.feedback import IntegralStateFeedback, StateFeedback
+from obsfmu.observers.feedback import IntegralStateFeedback, StateFeedback, integral_augmented
 from obsfmu.observers.luenberger import LuenbergerObserver
 from obsfmu.observers.checks import ParameterError
 from obsfmu.observers.lti_model import StateSpace
-from obsfmu.observers.modal import MAX_TRANSIENT_GROWTH, desired_poles, observer_gain, shifted_poles, transient_growth
+from obsfmu.observers.modal import (MAX_TRANSIENT_GROWTH, desired_poles, observer_gain, place, shifted_poles,
+                                   transient_growth)
 from obsfmu.plants.lti import LTIPlant
 
 from ..definition import FmuDefinition, Parameter, Port
@@ -41,38 +42,63 @@ def _luenberger(p, options):
     return LuenbergerObserver(p["A"], p["B"], p["C"], N, p["x_hat0"], p["D"], **offsets)
 
 
-#: the design parameters an observer FMU may carry instead of its gain N (computed at initialisation)
+#: the design parameters an observer or state-feedback FMU may carry instead of its gain (computed at initialisation)
 DESIGNS = ("t_settle", "poles", "shift")
 
 
 def _designed_gain(p, options) -> np.ndarray:
-    """N with eig(A - N C) at the poles of the FMU's design parameter (``t_settle`` with the build's ``form``,
-    real ``poles``, or ``shift``), as the system file designs it (paper 002, pole placement by duality); a
-    choice that is not observable or leaves an unbounded transient raises, naming the parameter."""
-    A, C, design = np.atleast_2d(p["A"]), np.atleast_2d(p["C"]), options["design"]
+    """N with eig(A - N C) at the poles of the FMU's design parameter (paper 002, pole placement by duality)."""
+    A, C = np.atleast_2d(p["A"]), np.atleast_2d(p["C"])
+    N = _placed(A, p, options, lambda poles, name: observer_gain(A, C, poles, name),
+                lambda N: A - N @ C, "A - N C")
+    return N
+
+
+def _designed_feedback(A, B, p, options) -> np.ndarray:
+    """K with eig(A - B K) at the poles of the FMU's design parameter (``A``, ``B`` of the plant, or of the plant
+    augmented with the integrators of its output error)."""
+    return _placed(A, p, options, lambda poles, name: place(A, B, poles, name), lambda K: A - B @ K, "A - B K")
+
+
+def _placed(A, p, options, designer, closed_loop, loop_text: str) -> np.ndarray:
+    """The gain ``designer(poles, name)`` for the poles of the FMU's design parameter (``t_settle`` with the
+    build's ``form``, real ``poles``, or ``shift``), as the system file designs it; a choice that cannot be
+    placed (not observable/controllable) or leaves an unbounded transient raises, naming the parameter."""
+    design = options["design"]
     if design == "shift":
         poles = shifted_poles(A, float(p["shift"]), "shift")
     elif design == "t_settle":
         poles = desired_poles(len(A), t_settle=float(p["t_settle"]), form=options["form"], name="t_settle")
     else:
         poles = desired_poles(len(A), poles=np.ravel(p["poles"]), name="poles")
-    N = observer_gain(A, C, poles, design)
-    growth = transient_growth(A - N @ C)
+    gain = designer(poles, design)
+    growth = transient_growth(closed_loop(gain))
     if growth > MAX_TRANSIENT_GROWTH:
-        raise ParameterError(f"{design}: eig(A - N C) = {np.round(poles, 6).tolist()} amplifies an initial error "
+        raise ParameterError(f"{design}: eig({loop_text}) = {np.round(poles, 6).tolist()} amplifies an initial error "
                              f"up to {growth:.2g} times before it decays (accepted: {MAX_TRANSIENT_GROWTH:g}); "
                              "choose slower poles or poles closer to the plant's own")
-    return N
+    return gain
+
+
+def _model_matrices(p) -> tuple[np.ndarray, np.ndarray]:
+    A = np.atleast_2d(np.asarray(p["A"], dtype=float))
+    return A, np.asarray(p["B"], dtype=float).reshape(len(A), -1)
 
 
 @register("state-feedback")
 def _state_feedback(p, options):
-    return StateFeedback(p["K"])
+    if "K" in p:
+        return StateFeedback(p["K"])
+    return StateFeedback(_designed_feedback(*_model_matrices(p), p, options))
 
 
 @register("integral-state-feedback")
 def _integral_state_feedback(p, options):
-    return IntegralStateFeedback(p["K"], p["K_i"])
+    if "K" in p:
+        return IntegralStateFeedback(p["K"], p["K_i"])
+    A, B = _model_matrices(p)
+    K = _designed_feedback(*integral_augmented(A, B, p["C"]), p, options)
+    return IntegralStateFeedback(K[:, :len(A)], K[:, len(A):])
 
 
 def vector_unit(values):
@@ -138,18 +164,24 @@ def plant_definition(model_name: str, model: StateSpace, x0, units: dict, descri
     )
 
 
-def _design_parameter(design, N) -> Parameter:
-    """The gain ``N`` itself, or the design ``(name, value, form)`` the FMU computes ``N`` from at initialisation."""
+def _design_parameter(design, gain: Parameter, whose: str, designed: str = "") -> Parameter:
+    """The ``gain`` itself, or the design ``(name, value, form)`` the FMU computes it (or ``designed``) from at
+    initialisation (``whose``: "the observer's" or "the closed loop's" poles)."""
     if design is None:
-        return Parameter.of("N", N, "observer gain (eig(A - N C) Hurwitz)", drop_axes=(1,))
+        return gain
     name, value, form = design
+    computed = f"{designed or gain.name} is designed from {'them' if name == 'poles' else 'it'} at initialisation"
     if name == "t_settle":
-        return Parameter.scalar(name, value, f"settling time of the observer's poles ({form} standard form); "
-                                "N is designed from it at initialisation", "s")
+        return Parameter.scalar(name, value, f"settling time of {whose} poles ({form} standard form); {computed}",
+                                "s")
     if name == "shift":
-        return Parameter.scalar(name, value, "the plant's eigenvalues moved left by shift are the observer's "
-                                "poles; N is designed from it at initialisation", "1/s")
-    return Parameter.of(name, value, "the observer's poles (real); N is designed from them at initialisation", "1/s")
+        return Parameter.scalar(name, value, f"the plant's eigenvalues moved left by shift are {whose} poles; "
+                                f"{computed}", "1/s")
+    return Parameter.of(name, value, f"{whose} poles (real); {computed}", "1/s")
+
+
+def _design_options(design) -> dict:
+    return {} if design is None else {"design": design[0], "form": design[2]}
 
 
 def observer_definition(model_name: str, model: StateSpace, N, x_hat0, units: dict,
@@ -163,12 +195,13 @@ def observer_definition(model_name: str, model: StateSpace, N, x_hat0, units: di
         model_name=model_name,
         kind="luenberger-observer",
         feedthrough=bool(np.any(model.D)),
-        options={} if design is None else {"design": design[0], "form": design[2]},
+        options=_design_options(design),
         description=description or ("discrete Luenberger observer x_hat[k+1] = A x_hat + B u + N (y - C x_hat - D u)"
                                     if model.discrete else "Luenberger observer x_hat' = A x_hat + B u + N (y - C x_hat "
                                     "- D u)") + f", eig(A - N C) = [{poles_text}]",
         parameters=_model_parameters(model) + [
-            _design_parameter(design, N),
+            _design_parameter(design, Parameter.of("N", N, "observer gain (eig(A - N C) Hurwitz)", drop_axes=(1,)),
+                              "the observer's"),
             Parameter.of("x_hat0", x_hat0, "initial estimate x_hat(0)", _vector_unit(units, "state_units")),
         ] + _timing(model) + ([] if offsets is None else [
             Parameter.of("offset", offsets[0], "c = f(x_0, u_0) - A x_0 - B u_0 of the model linearised at the "
@@ -186,8 +219,16 @@ def observer_definition(model_name: str, model: StateSpace, N, x_hat0, units: di
     )
 
 
-def feedback_definition(model_name: str, K, units: dict, description: str) -> FmuDefinition:
-    """State-feedback FMU ``u = -K x_hat + r``."""
+def _design_model(model: StateSpace | None, design, with_C: bool = False) -> list[Parameter]:
+    """The plant's A, B (and C) a state-feedback FMU designs its gain from at initialisation (none without a
+    ``design``)."""
+    return [] if design is None else _model_parameters(model)[:3 if with_C else 2]
+
+
+def feedback_definition(model_name: str, K, units: dict, description: str, design=None,
+                        model: StateSpace | None = None) -> FmuDefinition:
+    """State-feedback FMU ``u = -K x_hat + r``: parameter K, or (with a ``design`` ``(name, value, form)``) the
+    plant ``model``'s A, B and the design it computes K from at initialisation."""
     K = np.asarray(K, dtype=float)
     m, n = K.shape
     u_unit = _vector_unit(units, "input_units")
@@ -195,8 +236,11 @@ def feedback_definition(model_name: str, K, units: dict, description: str) -> Fm
         model_name=model_name,
         kind="state-feedback",
         feedthrough=True,
+        options=_design_options(design),
         description=description or "modal state feedback u = -K x_hat + r",
-        parameters=[Parameter.of("K", K, "state-feedback gain (eig(A - B K) Hurwitz)", drop_axes=(0,))],
+        parameters=_design_model(model, design) + [_design_parameter(
+            design, Parameter.of("K", K, "state-feedback gain (eig(A - B K) Hurwitz)", drop_axes=(0,)),
+            "the closed loop's")],
         inputs=[
             Port("x_hat", n, "state estimate", _vector_unit(units, "state_units"), labels=units.get("state_names")),
             Port("r", m, "reference input added to -K x_hat", u_unit, scalar=m == 1, labels=units.get("input_names")),
@@ -205,18 +249,25 @@ def feedback_definition(model_name: str, K, units: dict, description: str) -> Fm
     )
 
 
-def integral_feedback_definition(model_name: str, K, K_i, units: dict, description: str) -> FmuDefinition:
-    """State feedback with integral action FMU: ``u = -K x_hat - K_i z``, ``z' = y - r`` (observers.feedback)."""
+def integral_feedback_definition(model_name: str, K, K_i, units: dict, description: str, design=None,
+                                 model: StateSpace | None = None) -> FmuDefinition:
+    """State feedback with integral action FMU: ``u = -K x_hat - K_i z``, ``z' = y - r`` (observers.feedback):
+    parameters K and K_i, or (with a ``design``) the plant ``model``'s A, B, C and the design of the augmented
+    loop ``[K, K_i]`` is computed from at initialisation."""
     K, K_i = np.asarray(K, dtype=float), np.asarray(K_i, dtype=float)
     (m, n), p = K.shape, K_i.shape[1]
     u_unit, y_unit = _vector_unit(units, "input_units"), _vector_unit(units, "output_units")
+    gains = [Parameter.of("K", K, "state-feedback gain", drop_axes=(0,)),
+             Parameter.of("K_i", K_i, "integral gain on z = int (y - r) dt", drop_axes=(0, 1))]
+    if design is not None:
+        gains = [_design_parameter(design, gains[0], "the augmented closed loop's", "[K, K_i]")]
     return FmuDefinition(
         model_name=model_name,
         kind="integral-state-feedback",
         feedthrough=True,
+        options=_design_options(design),
         description=description or "state feedback with integral action u = -K x_hat - K_i z, z' = y - r",
-        parameters=[Parameter.of("K", K, "state-feedback gain", drop_axes=(0,)),
-                    Parameter.of("K_i", K_i, "integral gain on z = int (y - r) dt", drop_axes=(0, 1))],
+        parameters=_design_model(model, design, with_C=True) + gains,
         inputs=[
             Port("x_hat", n, "state estimate", _vector_unit(units, "state_units"), labels=units.get("state_names")),
             Port("y", p, "measured output y", y_unit, scalar=p == 1, labels=units.get("output_names")),
@@ -225,4 +276,3 @@ def integral_feedback_definition(model_name: str, K, K_i, units: dict, descripti
         ],
         outputs=[Port("u", m, "control u = -K x_hat - K_i z", u_unit, scalar=m == 1, labels=units.get("input_names"))],
     )
-

@@ -58,7 +58,9 @@ def test_pip_install_then_build_and_run_from_elsewhere(tmp_path):
     assert installed == ["obsfmu"], installed     # issue 38: no collision-prone top-level package (fmus, plants, ...)
 
     built = command(venv / "bin" / "obsfmu", "build", cwd=elsewhere)
-    assert "INVALID" not in built and (elsewhere / "build" / "ship_observer.fmu").is_file()
+    # issue 38: an installed obsfmu builds into its cache ($XDG_CACHE_HOME/obsfmu/build), not the working directory
+    assert "INVALID" not in built and (tmp_path / "cache" / "obsfmu" / "build" / "ship_observer.fmu").is_file()
+    assert not (elsewhere / "build").exists()
     assert list((tmp_path / "cache" / "obsfmu" / "native").glob("obsfmu_loader-*"))  # compiled from the install
     ran = command(venv / "bin" / "obsfmu", "run", "ship", "--stop-time", "0.05", cwd=elsewhere)
     assert "ship:" in ran
