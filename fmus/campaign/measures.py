@@ -29,6 +29,15 @@ class Measure:
     time_label: str   #: what the convergence time is, with the tolerance, e.g. "all |theta_hat - theta| < 1e-3"
     error_label: str
     time_unit: str | None = None  #: None: the scenario's unit of time
+    #: metric names of the errors' fluctuation at the end of the run (:func:`fmus.metrics.fluctuation`), with
+    #: their tolerances: the noise check of a sweep (none: not checked)
+    noise: tuple[tuple[str, float], ...] = ()
+
+    def noise_ratio(self, metrics: dict) -> float:
+        """The largest ``3 * fluctuation / tolerance`` of a sample (0 where its metrics have none)."""
+        ratios = [3.0 * float(metrics[name]) / tolerance for name, tolerance in self.noise
+                  if metrics.get(name) is not None and math.isfinite(float(metrics[name]))]
+        return max(ratios, default=0.0)
 
     def evaluate(self, metrics: dict[str, float]) -> tuple[float, float]:
         """``(convergence time, final error)`` of one sample's summary metrics."""
@@ -60,9 +69,9 @@ def measure_for(scenario, time_metric=None, error_metric=None) -> Measure:
         names = _names("--time-metric", time_metric)
         unit = "samples" if all("samples" in name for name in names) else None
         measure = Measure(names, measure.error if measure else (), "max(" + ", ".join(names) + ")",
-                          measure.error_label if measure else "", unit)
+                          measure.error_label if measure else "", unit, measure.noise if measure else ())
     if error_metric is not None:
         names = _names("--error-metric", error_metric)
         measure = Measure(measure.time, names, measure.time_label, "max |" + "|, |".join(names) + "|",
-                          measure.time_unit)
+                          measure.time_unit, measure.noise)
     return measure

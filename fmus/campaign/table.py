@@ -8,6 +8,7 @@ from collections import Counter
 import numpy as np
 import pyarrow as pa
 
+from ..metrics import HOLD
 from .design import Plan
 from .measures import Measure
 from .store import rows_to_table
@@ -20,10 +21,6 @@ LEADING_COLUMNS = ("status", "reason", "converged", "convergence_time", "final_e
                    "warnings")
 QUANTILES = (0.0, 0.05, 0.25, 0.5, 0.75, 0.95, 1.0)
 
-#: a sample converged when its error stayed within tolerance from its convergence time to the end of the run for
-#: at least this fraction of the run: an error that dips below the tolerance at the very end (noise) is no
-#: convergence (issue 38: "4 of 4 converged" at 2.998 s of a 3 s run)
-HOLD = 0.1
 
 
 def stop_in_time_unit(plan) -> float:
@@ -91,6 +88,7 @@ def summary_text(plan: Plan, table: pa.Table) -> str:
         lines.append(f"  {late} sample(s) came within tolerance only in the last {100 * HOLD:g} % of the run: not "
                      "counted as converged (a dip of a noisy error, or a run too short: raise the stop time, or the "
                      "tolerance above the noise-induced error)")
+    lines += _noise_lines(plan.measure, rows)
     lines.append(f"convergence time, {unit} (converged samples): {_quantiles(converged, '.4g')}")
     lines.append(f"{plan.measure.error_label} (finished samples): {_quantiles(finished[np.isfinite(finished)], '.3g')}")
     failed = [row for row in rows if row["status"] != "ok"]
@@ -106,3 +104,16 @@ def summary_text(plan: Plan, table: pa.Table) -> str:
         lines.append(f"wall time per sample: median {np.median(walls):.3g} s, total {walls.sum():.4g} s of runs; "
                      f"{setups.size} session set-ups (extract + instantiate), median {setup:.3g} s")
     return "\n".join(lines)
+
+
+def _noise_lines(measure: Measure, rows: list[dict]) -> list[str]:
+    """A warning when the error of some samples fluctuates at the end of the run (3 standard deviations about its
+    trend) above its tolerance: the tolerance is below the noise-induced error, so ``converged`` says more about
+    the noise than about the observer."""
+    noisy = [ratio for row in rows if row["status"] == "ok" and (ratio := measure.noise_ratio(row)) > 1.0]
+    if not noisy:
+        return []
+    return [(f"  noise: in {len(noisy)} of {len(rows)} sample(s) the error fluctuates over the last {100 * HOLD:g} % "
+             f"of the run by 3 standard deviations up to {max(noisy):.3g} times its tolerance (median "
+             f"{np.median(noisy):.3g}): the tolerance is below the noise-induced error, so whether such a sample "
+             "counts as converged depends on the noise; raise the tolerance above it, or lower the noise")]

@@ -89,8 +89,11 @@ class SystemSpec:
         from ..campaign.measures import Measure
         estimates = [c for compare in self.compares for c in compare["estimate_columns"]]
         tolerances = ", ".join(f"{compare['tolerance']:g}" for compare in self.compares)
+        noise = tuple((f"fluctuation {c}", compare["tolerance"]) for compare in self.compares
+                      for c in compare["estimate_columns"])
         return Measure(tuple(f"convergence_time {c}" for c in estimates), tuple(f"final_error {c}" for c in estimates),
-                       f"every |truth - estimate| below its tolerance ({tolerances})", "max final |truth - estimate|")
+                       f"every |truth - estimate| below its tolerance ({tolerances})", "max final |truth - estimate|",
+                       noise=noise)
 
     # ------------------------------------------------------------------ summary and figure
     def _pairs(self, result, compare) -> tuple[np.ndarray, np.ndarray]:
@@ -111,7 +114,7 @@ class SystemSpec:
 
     def summarize(self, result):
         """Final error and convergence time per compared entry; the reference line (none, or the CSV's)."""
-        from ..metrics import format_time, time_to_stay_below
+        from ..metrics import HOLD, fluctuation, format_time, time_to_stay_below
         from ..scenarios import Summary
         lines, metrics = [], {}
         unit, labels = result.time_unit, self.labels()
@@ -127,6 +130,11 @@ class SystemSpec:
                 named = f" ({labels[t_name]})" if t_name in labels else ""
                 lines.append(f"{e_name} vs {t_name}{named}: final |error| {final:.3g}{column_unit}, "
                              f"below {compare['tolerance']:g} from {format_time(converged, unit)}")
+                spread = metrics[f"fluctuation {e_name}"] = fluctuation(result.time, error[:, j])
+                if 3.0 * spread > compare["tolerance"]:
+                    lines.append(f"  noise: over the last {100 * HOLD:g} % of the run the error fluctuates by 3 "
+                                 f"standard deviations = {3.0 * spread:.3g}{column_unit}, above the tolerance "
+                                 f"{compare['tolerance']:g}: the tolerance is below the noise-induced error")
         if not lines:
             lines.append("nothing compared (add [[report.compare]] tables with estimate and truth)")
         return Summary(lines, metrics, self._reference(result))
