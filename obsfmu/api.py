@@ -200,11 +200,13 @@ def _overrides(values: dict | None) -> list[tuple[str, str, float]]:
 
 class Result:
     """A run: ``time`` (1-d array), ``columns`` (``plant.x[1]``, ...), ``values[k, j]`` (column j at time k),
-    ``units`` (column -> declared unit), ``summary`` (the text ``obsfmu run`` prints, or ``""``) and
-    ``metrics`` (the numbers behind it)."""
+    ``units`` (column -> declared unit), ``labels`` (column -> the name its plant gave the entry,
+    ``state_names`` ..., where given), ``summary`` (the text ``obsfmu run`` prints, or ``""``) and ``metrics``
+    (the numbers behind it)."""
 
-    def __init__(self, raw, summary=None):
+    def __init__(self, raw, summary=None, labels=None):
         self._raw = raw
+        self.labels: dict[str, str] = dict(labels or {})
         self.time: np.ndarray = raw.time
         self.columns: list[str] = list(raw.columns)
         self.values: np.ndarray = raw.values
@@ -219,14 +221,27 @@ class Result:
             return self._raw[column]
         return self._raw.vector(column)
 
-    def frame(self):
-        """The result as a pandas DataFrame indexed by time (pandas must be installed)."""
+    def named_columns(self) -> list[str]:
+        """The columns with the names their plants gave them: ``plant.x[1]`` -> ``plant.x.current``
+        (``instance.port.name``; a column without a name, or whose name repeats in its port, as it is)."""
+        named = [self._named(column) for column in self.columns]
+        repeated = {name for name in named if named.count(name) > 1}
+        return [column if name in repeated else name for column, name in zip(self.columns, named)]
+
+    def _named(self, column: str) -> str:
+        label = self.labels.get(column)
+        return column if label is None else f"{column.partition('[')[0]}.{label}"
+
+    def frame(self, names: bool = False):
+        """The result as a pandas DataFrame indexed by time (pandas must be installed); ``names``: the columns
+        as :meth:`named_columns` (``plant.x.current``), else as the FMUs name them (``plant.x[1]``)."""
         try:
             import pandas
         except ImportError:
             raise ImportError("Result.frame() needs pandas (pip install pandas); the arrays are "
                               "Result.time, Result.values and Result.columns") from None
-        return pandas.DataFrame(self.values, index=pandas.Index(self.time, name="time"), columns=self.columns)
+        return pandas.DataFrame(self.values, index=pandas.Index(self.time, name="time"),
+                                columns=self.named_columns() if names else self.columns)
 
     def to_csv(self, path: Path | str) -> None:
         self._raw.to_csv(path)
@@ -253,7 +268,15 @@ def run(target, *, stop_time: float | None = None, step: float | None = None, se
     raw, summary = _in.scenarios.run(key, _build_dir(build_dir), stop_time=stop_time, step=step, order=order,
                                      coupling=coupling, overrides=_overrides(set), progress=progress,
                                      tolerance=tolerance, fmi_version=fmi_version)
-    return Result(raw, summary)
+    return Result(raw, summary, _labels(_in.scenarios.get(key)))
+
+
+def _labels(scenario) -> dict[str, str]:
+    """Column -> name of the entries the scenario's plants named (``state_names`` ...)."""
+    definitions = {d.model_name: d for d in (item[0] if isinstance(item, tuple) else item
+                                             for item in scenario.definitions())}
+    return _in.column_labels((instance, definitions[model]) for instance, model, _ in scenario.components
+                             if model in definitions)
 
 
 def build(target, out: Path | str | None = None, *, fmi_version: int = 2, standalone: bool = False,

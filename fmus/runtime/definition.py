@@ -161,3 +161,14 @@ class FmuDefinition:
     @classmethod
     def load(cls, path: Path) -> "FmuDefinition":
         return cls.from_json(Path(path).read_text())
+
+
+def column_labels(instances) -> dict[str, str]:
+    """Column -> the name a plant gave the entry (``state_names`` ...), over ``(instance, definition)`` pairs:
+    ``{"plant.x[1]": "current", "observer.x_hat[1]": "current"}`` (columns without a name are left out)."""
+    found = {}
+    for instance, definition in instances:
+        for port in definition.outputs:
+            if port.labels:
+                found.update({f"{instance}.{name}": label for name, label in zip(port.element_names, port.labels)})
+    return found

@@ -103,14 +103,9 @@ class SystemSpec:
 
     def labels(self) -> dict[str, str]:
         """Column -> the name its plant gave the entry (``state_names`` ...): ``{"plant.x[1]": "current"}``."""
-        found = {}
-        for instance, component in self.components.items():
-            for definition in component.definitions:
-                for port in definition.outputs:
-                    if port.labels:
-                        found.update({f"{instance}.{name}": label
-                                      for name, label in zip(port.element_names, port.labels)})
-        return found
+        from ..runtime.definition import column_labels
+        return column_labels((instance, definition) for instance, component in self.components.items()
+                             for definition in component.definitions)
 
     def summarize(self, result):
         """Final error and convergence time per compared entry; the reference line (none, or the CSV's)."""

@@ -118,6 +118,25 @@ def test_results_are_arrays_and_a_frame(example):
         assert list(result.frame().columns) == result.columns
 
 
+def test_results_carry_the_names_of_the_statespace(example):
+    """Issue 38: the StateSpace's labels name the result's columns (``labels``, ``named_columns``, ``frame(names=
+    True)``); columns without a name keep theirs."""
+    _, result = example
+    assert result.labels["plant.x[1]"] == "current" and result.labels["observer.x_hat[2]"] == "speed"
+    assert result.labels["plant.y"] == "speed" and "plant.u" not in result.labels
+    named = dict(zip(result.columns, result.named_columns()))
+    assert named["plant.x[1]"] == "plant.x.current" and named["observer.x_hat[2]"] == "observer.x_hat.speed"
+    assert named["plant.y"] == "plant.y.speed" and named["observer.y_hat"] == "observer.y_hat.speed"
+    assert all(named[c] == c for c in result.columns if c not in result.labels)
+    assert len(set(named.values())) == len(named)
+    try:
+        import pandas  # noqa: F401
+    except ImportError:
+        return
+    frame = result.frame(names=True)
+    assert np.array_equal(frame["plant.x.current"].to_numpy(), result["plant.x[1]"])
+
+
 def test_unknown_targets_are_named():
     with pytest.raises(obsfmu.SimulationError, match="unknown scenario 'nope'"):
         obsfmu.scenario("nope")
