@@ -24,9 +24,9 @@ above ``rank(B)``.  Two methods, tried in this order:
 
 The gain of the method whose closed loop is closer to the request is kept.
 
-Multi-input problems use ``place_poles`` (Kautsky-Nichols-van Dooren /
-Tits-Yang) when it can, and otherwise reduce to a single input ``B v``
-(cyclic design).
+Multi-input problems use Tits and Yang's robust placement when it can (numpy
+alone for real poles, :mod:`observers.robust_placement`; SciPy's ``place_poles``
+for complex ones), and otherwise reduce to a single input ``B v`` (cyclic design).
 
 Check after design.  Whatever the method, the gain is accepted only if the
 eigenvalues of ``A - B K`` as computed in double precision match the
@@ -42,8 +42,9 @@ from __future__ import annotations
 import numpy as np
 
 from .checks import ParameterError, as_matrix, as_vector, require_positive, require_square
-from .standard_forms import standard_poles
 from .lti_model import StateSpace
+from .robust_placement import robust_place
+from .standard_forms import standard_poles
 
 __all__ = [
     "shifted_poles",
@@ -319,8 +320,7 @@ def place(A, B, poles, name: str = "poles") -> np.ndarray:
     if B.shape[1] == 1:
         return _single_input(A, B, poles, name)
     if _max_multiplicity(poles) <= np.linalg.matrix_rank(B):
-        from scipy.signal import place_poles   # here: scipy.signal costs ~0.5 s to import
-        K = place_poles(A, B, poles, method="YT").gain_matrix
+        K = _robust(A, B, poles, name)
     else:
         v = _cyclic_direction(A, B)
         if v is None:
@@ -333,6 +333,21 @@ def place(A, B, poles, name: str = "poles") -> np.ndarray:
     if deviation > POLE_ACCURACY:
         raise _refuse(name, poles, deviation, "")
     return K
+
+
+def _robust(A: np.ndarray, B: np.ndarray, poles: np.ndarray, name: str) -> np.ndarray:
+    """Tits & Yang's robust multi-input placement: numpy alone for real poles (:mod:`observers.robust_placement`,
+    what an FMU designing its gain at initialisation runs), SciPy's ``place_poles`` for complex ones."""
+    if all(p.imag == 0 for p in poles):
+        return robust_place(A, B, np.array([p.real for p in poles]))
+    try:
+        from scipy.signal import (
+            place_poles,  # here: scipy.signal costs ~0.5 s to import
+        )
+    except ImportError:                        # in an FMU: numpy only
+        raise ParameterError(f"{name}: complex poles with several inputs (outputs) are placed by scipy, which is not "
+                             "installed here; choose real poles") from None
+    return place_poles(A, B, poles, method="YT").gain_matrix
 
 
 def observer_gain(A, C, poles, name: str = "poles") -> np.ndarray:

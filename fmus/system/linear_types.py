@@ -8,7 +8,6 @@ must place the poles and keep the transient bounded.  Each designed gain is adde
 from __future__ import annotations
 
 import numpy as np
-
 from obsfmu.observers.checks import ParameterError, require_hurwitz
 from obsfmu.observers.feedback import integral_augmented
 from obsfmu.observers.linearise import linearise
@@ -18,8 +17,12 @@ from obsfmu.observers.standard_forms import FORMS
 
 from ..config import design_gain, require_bounded_transient
 from ..runtime.kinds.expression import expression_plant_definition
-from ..runtime.kinds.linear import (feedback_definition, integral_feedback_definition, observer_definition,
-                                   plant_definition)
+from ..runtime.kinds.linear import (
+    feedback_definition,
+    integral_feedback_definition,
+    observer_definition,
+    plant_definition,
+)
 from .inmemory import component_block
 from .schema import Context, Field, register
 from .values import MAX_DIMENSION
@@ -205,7 +208,7 @@ def _continuous_observer(model_name: str, values: dict, context: Context, model,
     if np.size(x_hat0) != model.n:
         raise ParameterError(f"{context.prefix}x_hat0: expected {model.n} entries, got {np.size(x_hat0)}")
     poles = np.linalg.eigvals(model.A - N @ model.C) if poles is None else poles
-    design = _carried_design(values, table, context, "N", model.p, "output") if offsets is None else None
+    design = _carried_design(values, table, context, "N", model.p, "output", model.A) if offsets is None else None
     return observer_definition(model_name, model, N, x_hat0, units, values["description"], poles, design, offsets)
 
 
@@ -315,15 +318,21 @@ def _discrete_kalman(values: dict, context: Context, model, table: dict) -> np.n
     return model.A @ P @ model.C.T @ np.linalg.inv(model.C @ P @ model.C.T + R)
 
 
-def _carried_design(values: dict, table: dict, context: Context, gain: str, channels: int, channel: str):
-    """The design the FMU carries as its parameter (``tunable``), or None: the gain itself is.  Several
-    outputs (inputs) need scipy's place_poles and the Butterworth form scipy's step response; an FMU carries
-    numpy only, so their gain stays the parameter (said in the build's notes)."""
+def _carried_design(values: dict, table: dict, context: Context, gain: str, channels: int, channel: str,
+                    A: np.ndarray):
+    """The design the FMU carries as its parameter (``tunable``), or None: the gain itself is.  The Butterworth
+    form needs scipy's step response, and complex poles with several outputs (inputs) scipy's place_poles (a
+    shift of a plant with complex eigenvalues); an FMU carries numpy only, so their gain stays the parameter
+    (said in the build's notes)."""
     design = _design(table) if values["tunable"] else None
-    if design is not None and (channels > 1 or (design[0] == "t_settle" and design[2] != "binomial")):
-        context.notes.append(f"{context.prefix.rstrip('.')}: {gain} is the FMU's parameter (this design needs scipy, "
-                             f"which an FMU does not carry: tunable designs are single-{channel} poles, shift or "
-                             "binomial t_settle)")
+    if design is None:
+        return None
+    complex_poles = channels > 1 and design[0] == "shift" and np.any(np.linalg.eigvals(A).imag != 0)
+    if complex_poles or (design[0] == "t_settle" and design[2] != "binomial"):
+        why = f"complex poles with several {channel}s" if complex_poles else "the butterworth form"
+        context.notes.append(f"{context.prefix.rstrip('.')}: {gain} is the FMU's parameter ({why} need scipy, which "
+                             "an FMU does not carry: tunable designs are real poles, binomial t_settle, or a shift "
+                             f"of real eigenvalues with several {channel}s)")
         return None
     return design
 
@@ -331,7 +340,8 @@ def _carried_design(values: dict, table: dict, context: Context, gain: str, chan
 def _tunable(gain: str, channel: str) -> Field:
     return Field("tunable", "boolean", f"the design (`t_settle`, `shift` or real `poles`) is the FMU's parameter "
                  f"and {gain} is designed from it at initialisation (`--set`, `--vary`, importers change it); false, "
-                 f"or a plant with several {channel}s, or the butterworth form: {gain} itself is the parameter", True,
+                 f"or the butterworth form, or a shift of complex eigenvalues with several {channel}s: {gain} itself "
+                 "is the parameter", True,
                  example="false")
 
 
@@ -380,7 +390,7 @@ def _define_feedback(model_name: str, values: dict, context: Context) -> list:
         K, _ = _checked_gain(context, table, design, "K", (design.m, design.n),
                              lambda p, name: place(design.A, design.B, p, name),
                              lambda K: design.A - design.B @ K, "A - B K" if design is model else "A_a - B_a K")
-    carried = _carried_design(values, table, context, "K", model.m, "input")
+    carried = _carried_design(values, table, context, "K", model.m, "input", design.A)
     if not values["integral"]:
         return [feedback_definition(model_name, K, units, values["description"], carried, model)]
     K = np.asarray(K, dtype=float).reshape(design.m, design.n)
