@@ -310,7 +310,9 @@ def test_fmpy_for_windows_runs_each_fmu_like_fmpy_on_linux(fmpy_runs, model):
     for name in windows.dtype.names[1:]:
         scale = max(np.max(np.abs(linux[name])), 1e-300)
         deviation = np.max(np.abs(windows[name].astype(float) - linux[name].astype(float))) / scale
-        assert deviation <= 1e-12, (name, deviation)   # measured: <= 1.3e-16 (numpy 2.1.3 on Windows)
+        # measured: <= 1.3e-16 (numpy 2.1.3 on Windows); but an `excitation` is a determinant of an extended
+        # regressor, whose rounding grows with its condition: the UIO observer's (stages 2-3 adapting) 1.4e-11
+        assert deviation <= (1e-9 if name.startswith("excitation") else 1e-12), (name, deviation)
 
 
 # ------------------------------------------------------------------ a dual-platform FMU in Linux tools
