@@ -13,6 +13,7 @@ from obsfmu.observers.feedback import integral_augmented
 from obsfmu.observers.linearise import linearise
 from obsfmu.observers.lti_model import StateSpace
 from obsfmu.observers.modal import is_controllable, is_observable, observer_gain, place
+from obsfmu.observers.riccati import checked_weight
 from obsfmu.observers.standard_forms import FORMS
 
 from ..config import design_gain, require_bounded_transient
@@ -209,20 +210,9 @@ def _continuous_observer(model_name: str, values: dict, context: Context, model,
         raise ParameterError(f"{context.prefix}x_hat0: expected {model.n} entries, got {np.size(x_hat0)}")
     poles = np.linalg.eigvals(model.A - N @ model.C) if poles is None else poles
     design = _carried_design(values, table, context, "N", model.p, "output", model.A) if offsets is None else None
+    if values["Q"] is not None and offsets is None:
+        design = _riccati_design(values, "kalman", N)
     return observer_definition(model_name, model, N, x_hat0, units, values["description"], poles, design, offsets)
-
-
-def _covariance(where: str, value, size: int, definite: bool, what: str = "covariance") -> np.ndarray:
-    value, article = np.asarray(value, dtype=float), "an" if what[0] in "aeiou" else "a"
-    if value.shape != (size, size):
-        raise ParameterError(f"{where}: expected a {size} x {size} matrix, got {value.shape[0]} x {value.shape[1]}")
-    if not np.allclose(value, value.T, rtol=1e-12, atol=0.0):
-        raise ParameterError(f"{where}: {article} {what} must be symmetric")
-    smallest = np.linalg.eigvalsh(value).min()
-    if smallest <= 0 if definite else smallest < -1e-12 * max(1.0, np.abs(value).max()):
-        raise ParameterError(f"{where}: {article} {what} must be positive {'definite' if definite else 'semidefinite'} "
-                             f"(smallest eigenvalue {smallest:.3g})")
-    return value
 
 
 def lqr_gain(where: str, A, B, Q, R) -> np.ndarray:
@@ -248,8 +238,8 @@ def _kalman(values: dict, context: Context, model, table: dict) -> np.ndarray:
     equation A P + P A' - P C' R^-1 C P + Q = 0 (process noise entering every state: G = I)."""
     prefix = context.prefix
     _riccati_request(values, prefix, table, "N")
-    Q = _covariance(f"{prefix}Q", values["Q"], model.n, definite=False)
-    R = _covariance(f"{prefix}R", values["R"], model.p, definite=True)
+    Q = checked_weight(f"{prefix}Q", values["Q"], model.n, definite=False)
+    R = checked_weight(f"{prefix}R", values["R"], model.p, definite=True)
     N = lqr_gain(f"{prefix}Q, R", model.A.T, model.C.T, Q, R).T
     require_hurwitz(f"{prefix}Q, R (A - N C of the Kalman gain)", model.A - N @ model.C)
     context.notes.append(f"{prefix.rstrip('.')}: Kalman N = {matrix_text(N)}; eig(A - N C) = "
@@ -262,8 +252,8 @@ def _lqr(values: dict, context: Context, model, table: dict) -> np.ndarray:
     """The LQR gain K = R^-1 B' P of the state weight Q and the input weight R."""
     prefix = context.prefix
     _riccati_request(values, prefix, table, "K")
-    Q = _covariance(f"{prefix}Q", values["Q"], model.n, definite=False, what="state weight")
-    R = _covariance(f"{prefix}R", values["R"], model.m, definite=True, what="input weight")
+    Q = checked_weight(f"{prefix}Q", values["Q"], model.n, definite=False, what="state weight")
+    R = checked_weight(f"{prefix}R", values["R"], model.m, definite=True, what="input weight")
     K = lqr_gain(f"{prefix}Q, R", model.A, model.B, Q, R)
     loop = model.A - model.B @ K
     require_hurwitz(f"{prefix}Q, R (A - B K of the LQR gain)", loop)
@@ -299,7 +289,8 @@ def _discrete_observer(model_name: str, values: dict, context: Context, model, u
                              "discrete observer's error e[k+1] = (A - N C) e[k] must decay")
     context.notes.append(f"{prefix.rstrip('.')}: N = {matrix_text(N)}; eig(A - N C) = [{poles_text(poles)}] "
                          "(discrete: |.| < 1)")
-    return observer_definition(model_name, model, N, x_hat0, units, values["description"], poles, None)
+    design = _riccati_design(values, "kalman", N) if values["Q"] is not None else None
+    return observer_definition(model_name, model, N, x_hat0, units, values["description"], poles, design)
 
 
 def _discrete_kalman(values: dict, context: Context, model, table: dict) -> np.ndarray:
@@ -308,8 +299,8 @@ def _discrete_kalman(values: dict, context: Context, model, table: dict) -> np.n
     from scipy.linalg import solve_discrete_are
     prefix = context.prefix
     _riccati_request(values, prefix, table, "N")
-    Q = _covariance(f"{prefix}Q", values["Q"], model.n, definite=False)
-    R = _covariance(f"{prefix}R", values["R"], model.p, definite=True)
+    Q = checked_weight(f"{prefix}Q", values["Q"], model.n, definite=False)
+    R = checked_weight(f"{prefix}R", values["R"], model.p, definite=True)
     try:
         P = solve_discrete_are(model.A.T, model.C.T, Q, R)
     except (np.linalg.LinAlgError, ValueError) as exc:
@@ -337,12 +328,20 @@ def _carried_design(values: dict, table: dict, context: Context, gain: str, chan
     return design
 
 
+def _riccati_design(values: dict, name: str, gain):
+    """``(name, (Q, R), gain)``: the FMU carries the weights (checked by the build) and designs its gain from them
+    at initialisation by Newton's method from the build's ``gain`` (:mod:`observers.riccati`); None when not
+    ``tunable``."""
+    if not values["tunable"]:
+        return None
+    return name, (np.asarray(values["Q"], dtype=float), np.asarray(values["R"], dtype=float)), gain
+
+
 def _tunable(gain: str, channel: str) -> Field:
-    return Field("tunable", "boolean", f"the design (`t_settle`, `shift` or real `poles`) is the FMU's parameter "
-                 f"and {gain} is designed from it at initialisation (`--set`, `--vary`, importers change it); false, "
-                 f"or the butterworth form, or a shift of complex eigenvalues with several {channel}s: {gain} itself "
-                 "is the parameter", True,
-                 example="false")
+    return Field("tunable", "boolean", f"the design (`t_settle`, `shift`, real `poles`, or `Q` and `R`) is the FMU's "
+                 f"parameter and {gain} is designed from it at initialisation (`--set`, `--vary`, importers change "
+                 f"it); false, or the butterworth form, or a shift of complex eigenvalues with several {channel}s: "
+                 f"{gain} itself is the parameter", True, example="false")
 
 
 def _design(table: dict):
@@ -391,6 +390,8 @@ def _define_feedback(model_name: str, values: dict, context: Context) -> list:
                              lambda p, name: place(design.A, design.B, p, name),
                              lambda K: design.A - design.B @ K, "A - B K" if design is model else "A_a - B_a K")
     carried = _carried_design(values, table, context, "K", model.m, "input", design.A)
+    if values["Q"] is not None:
+        carried = _riccati_design(values, "lqr", K)
     if not values["integral"]:
         return [feedback_definition(model_name, K, units, values["description"], carried, model)]
     K = np.asarray(K, dtype=float).reshape(design.m, design.n)

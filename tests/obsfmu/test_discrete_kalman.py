@@ -4,6 +4,7 @@ the FMUs and checked against an independent numpy loop of plant and predictor.""
 
 import numpy as np
 import pytest
+from test_kalman import built_gain
 
 import obsfmu
 
@@ -29,7 +30,7 @@ def system(**observer):
 def gain(built, tmp_path):
     spec = obsfmu._internals.load_system(built.save(tmp_path / "sampled.toml"))
     definition = spec.components["observer"].definitions[0]
-    return np.array(next(p.value for p in definition.parameters if p.name == "N")).reshape(2, 1)
+    return np.array(built_gain(definition, "N")).reshape(2, 1)
 
 
 def test_the_discrete_kalman_gain_is_python_controls_dlqe(tmp_path):
@@ -65,3 +66,17 @@ def test_the_sampled_observer_through_its_fmu_is_the_predictor_recursion(tmp_pat
 def test_a_sampled_observer_refuses_continuous_designs_and_unstable_gains(tmp_path, observer, message):
     with pytest.raises(obsfmu.ParameterError, match=message):
         gain(system(**observer), tmp_path)
+
+
+def test_r_set_at_run_time_gives_the_dlqe_predictor(tmp_path):
+    """The sampled observer's FMU designs its Kalman gain at initialisation from the Q and R it carries: with R
+    set to 1 the estimate is the predictor recursion with control.dlqe's gain for R = 1, to 1e-12."""
+    L, _, _ = control.dlqe(A, np.eye(2), C, Q, [[1.0]])
+    result = obsfmu.run(system(Q=Q, R=R).save(tmp_path / "sampled.toml"), build_dir=tmp_path / "build",
+                        set={"observer.R[1,1]": 1.0})
+    x, x_hat = np.array([1.0, -0.5]), np.zeros(2)
+    for _ in range(30):
+        y = C @ x
+        x, x_hat = A @ x + B[:, 0] * 0.5, A @ x_hat + B[:, 0] * 0.5 + L @ (y - C @ x_hat)
+    np.testing.assert_allclose(result["observer.x_hat"][-1], x_hat, rtol=0, atol=1e-12)
+    assert np.max(np.abs(L - gain(system(Q=Q, R=R), tmp_path))) > 1e-3          # R mattered

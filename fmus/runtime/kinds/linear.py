@@ -7,13 +7,28 @@ Each kind has a factory (FMU parameters -> block) and a definition function
 from __future__ import annotations
 
 import numpy as np
-
-from obsfmu.observers.feedback import IntegralStateFeedback, StateFeedback, integral_augmented
-from obsfmu.observers.luenberger import LuenbergerObserver
 from obsfmu.observers.checks import ParameterError
+from obsfmu.observers.feedback import (
+    IntegralStateFeedback,
+    StateFeedback,
+    integral_augmented,
+)
 from obsfmu.observers.lti_model import StateSpace
-from obsfmu.observers.modal import (MAX_TRANSIENT_GROWTH, desired_poles, observer_gain, place, shifted_poles,
-                                   transient_growth)
+from obsfmu.observers.luenberger import LuenbergerObserver
+from obsfmu.observers.modal import (
+    MAX_TRANSIENT_GROWTH,
+    desired_poles,
+    observer_gain,
+    place,
+    shifted_poles,
+    transient_growth,
+)
+from obsfmu.observers.riccati import (
+    checked_weight,
+    dkalman_newton,
+    kalman_newton,
+    lqr_newton,
+)
 from obsfmu.plants.lti import LTIPlant
 
 from ..definition import FmuDefinition, Parameter, Port
@@ -47,17 +62,33 @@ DESIGNS = ("t_settle", "poles", "shift")
 
 
 def _designed_gain(p, options) -> np.ndarray:
-    """N with eig(A - N C) at the poles of the FMU's design parameter (paper 002, pole placement by duality)."""
+    """N with eig(A - N C) at the poles of the FMU's design parameter (paper 002, pole placement by duality), or
+    the steady-state Kalman gain of its ``Q`` and ``R`` (continuous, or the sampled predictor's)."""
     A, C = np.atleast_2d(p["A"]), np.atleast_2d(p["C"])
+    if options["design"] == "kalman":
+        Q, R = _weights(p, len(A), len(C), "covariance")
+        newton = dkalman_newton if "sample_time" in p else kalman_newton
+        return newton(A, C, Q, R, np.asarray(options["initial_gain"]))
     N = _placed(A, p, options, lambda poles, name: observer_gain(A, C, poles, name),
                 lambda N: A - N @ C, "A - N C")
     return N
 
 
 def _designed_feedback(A, B, p, options) -> np.ndarray:
-    """K with eig(A - B K) at the poles of the FMU's design parameter (``A``, ``B`` of the plant, or of the plant
-    augmented with the integrators of its output error)."""
+    """K with eig(A - B K) at the poles of the FMU's design parameter, or the LQR gain of its ``Q`` and ``R``
+    (``A``, ``B`` of the plant, or of the plant augmented with the integrators of its output error)."""
+    if options["design"] == "lqr":
+        Q, R = _weights(p, len(A), B.shape[1], "weight")
+        return lqr_newton(A, B, Q, R, np.asarray(options["initial_gain"]))
     return _placed(A, p, options, lambda poles, name: place(A, B, poles, name), lambda K: A - B @ K, "A - B K")
+
+
+def _weights(p, n: int, m: int, what: str) -> tuple[np.ndarray, np.ndarray]:
+    """The FMU's ``Q`` (n x n) and ``R`` (m x m), checked symmetric and positive (semi)definite."""
+    state = "state weight" if what == "weight" else what
+    return (checked_weight("Q", np.reshape(p["Q"], (n, n)), n, definite=False, what=state),
+            checked_weight("R", np.reshape(p["R"], (m, m)), m, definite=True,
+                           what="input weight" if what == "weight" else what))
 
 
 def _placed(A, p, options, designer, closed_loop, loop_text: str) -> np.ndarray:
@@ -164,24 +195,40 @@ def plant_definition(model_name: str, model: StateSpace, x0, units: dict, descri
     )
 
 
-def _design_parameter(design, gain: Parameter, whose: str, designed: str = "") -> Parameter:
-    """The ``gain`` itself, or the design ``(name, value, form)`` the FMU computes it (or ``designed``) from at
-    initialisation (``whose``: "the observer's" or "the closed loop's" poles)."""
+#: designs whose parameters are the Riccati equation's weights Q and R (the build's gain starts Newton's iteration)
+RICCATI = ("kalman", "lqr")
+
+
+def _design_parameters(design, gain: Parameter, whose: str, designed: str = "") -> list[Parameter]:
+    """The ``gain`` itself, or the design the FMU computes it (or ``designed``) from at initialisation: ``(name,
+    value, form)`` of poles (``whose``: "the observer's" or "the closed loop's" poles), or ``(name, (Q, R), G0)``
+    of a Riccati design."""
     if design is None:
-        return gain
+        return [gain]
     name, value, form = design
-    computed = f"{designed or gain.name} is designed from {'them' if name == 'poles' else 'it'} at initialisation"
+    computed = f"{designed or gain.name} is designed from {'them' if name in ('poles', *RICCATI) else 'it'} at " \
+               "initialisation"
+    if name == "kalman":
+        return [Parameter.of("Q", value[0], f"process noise covariance (entering every state); {computed}"),
+                Parameter.of("R", value[1], f"measurement noise covariance; {computed}")]
+    if name == "lqr":
+        return [Parameter.of("Q", value[0], f"LQR state weight; {computed}"),
+                Parameter.of("R", value[1], f"LQR input weight; {computed}")]
     if name == "t_settle":
-        return Parameter.scalar(name, value, f"settling time of {whose} poles ({form} standard form); {computed}",
-                                "s")
+        return [Parameter.scalar(name, value, f"settling time of {whose} poles ({form} standard form); {computed}",
+                                 "s")]
     if name == "shift":
-        return Parameter.scalar(name, value, f"the plant's eigenvalues moved left by shift are {whose} poles; "
-                                f"{computed}", "1/s")
-    return Parameter.of(name, value, f"{whose} poles (real); {computed}", "1/s")
+        return [Parameter.scalar(name, value, f"the plant's eigenvalues moved left by shift are {whose} poles; "
+                                 f"{computed}", "1/s")]
+    return [Parameter.of(name, value, f"{whose} poles (real); {computed}", "1/s")]
 
 
 def _design_options(design) -> dict:
-    return {} if design is None else {"design": design[0], "form": design[2]}
+    if design is None:
+        return {}
+    if design[0] in RICCATI:       # the build's gain: where Newton's iteration starts
+        return {"design": design[0], "initial_gain": np.asarray(design[2], dtype=float).tolist()}
+    return {"design": design[0], "form": design[2]}
 
 
 def observer_definition(model_name: str, model: StateSpace, N, x_hat0, units: dict,
@@ -200,8 +247,8 @@ def observer_definition(model_name: str, model: StateSpace, N, x_hat0, units: di
                                     if model.discrete else "Luenberger observer x_hat' = A x_hat + B u + N (y - C x_hat "
                                     "- D u)") + f", eig(A - N C) = [{poles_text}]",
         parameters=_model_parameters(model) + [
-            _design_parameter(design, Parameter.of("N", N, "observer gain (eig(A - N C) Hurwitz)", drop_axes=(1,)),
-                              "the observer's"),
+            *_design_parameters(design, Parameter.of("N", N, "observer gain (eig(A - N C) Hurwitz)",
+                                                     drop_axes=(1,)), "the observer's"),
             Parameter.of("x_hat0", x_hat0, "initial estimate x_hat(0)", _vector_unit(units, "state_units")),
         ] + _timing(model) + ([] if offsets is None else [
             Parameter.of("offset", offsets[0], "c = f(x_0, u_0) - A x_0 - B u_0 of the model linearised at the "
@@ -238,9 +285,9 @@ def feedback_definition(model_name: str, K, units: dict, description: str, desig
         feedthrough=True,
         options=_design_options(design),
         description=description or "modal state feedback u = -K x_hat + r",
-        parameters=_design_model(model, design) + [_design_parameter(
+        parameters=_design_model(model, design) + _design_parameters(
             design, Parameter.of("K", K, "state-feedback gain (eig(A - B K) Hurwitz)", drop_axes=(0,)),
-            "the closed loop's")],
+            "the closed loop's"),
         inputs=[
             Port("x_hat", n, "state estimate", _vector_unit(units, "state_units"), labels=units.get("state_names")),
             Port("r", m, "reference input added to -K x_hat", u_unit, scalar=m == 1, labels=units.get("input_names")),
@@ -260,7 +307,7 @@ def integral_feedback_definition(model_name: str, K, K_i, units: dict, descripti
     gains = [Parameter.of("K", K, "state-feedback gain", drop_axes=(0,)),
              Parameter.of("K_i", K_i, "integral gain on z = int (y - r) dt", drop_axes=(0, 1))]
     if design is not None:
-        gains = [_design_parameter(design, gains[0], "the augmented closed loop's", "[K, K_i]")]
+        gains = _design_parameters(design, gains[0], "the augmented closed loop's", "[K, K_i]")
     return FmuDefinition(
         model_name=model_name,
         kind="integral-state-feedback",
