@@ -369,8 +369,10 @@ def shifted_poles(A, shift, name: str = "shift") -> np.ndarray:
     return eigenvalues - shift
 
 
-def desired_poles(n: int, *, poles=None, t_settle=None, form: str = "binomial", name: str = "poles"):
-    """Resolve a design request: explicit ``poles`` or a ``t_settle`` with a standard ``form``."""
+def desired_poles(n: int, *, poles=None, t_settle=None, form: str = "binomial", name: str = "poles",
+                  normalised: float | None = None):
+    """Resolve a design request: explicit ``poles`` or a ``t_settle`` with a standard ``form`` (``normalised``:
+    the Butterworth form's settling time at radius 1, computed before)."""
     if (poles is None) == (t_settle is None):
         raise ParameterError(f"{name}: give exactly one of 'poles' or 't_settle'")
     if poles is not None:
@@ -378,7 +380,7 @@ def desired_poles(n: int, *, poles=None, t_settle=None, form: str = "binomial", 
         if np.iscomplexobj(values):
             return _check_poles(values, n, name)
         return _check_poles(as_vector(name, values), n, name)
-    return standard_poles(n, t_settle, form)
+    return standard_poles(n, t_settle, form, normalised)
 
 
 def design_state_feedback(A, B=None, *, poles=None, t_settle=None, form: str = "binomial") -> np.ndarray:

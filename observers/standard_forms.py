@@ -26,6 +26,8 @@ __all__ = [
     "binomial",
     "butterworth",
     "butterworth_omega",
+    "butterworth_poles",
+    "butterworth_settling",
     "settling_time",
     "standard_poles",
     "FORMS",
@@ -94,27 +96,41 @@ def settling_time(coefficients, band: float = 0.05) -> float:
 
 
 @lru_cache(maxsize=None)
-def _normalised_butterworth_settling(n: int) -> float:
-    return settling_time(butterworth(n, 1.0))
+def butterworth_settling(n: int) -> float:
+    """The 5 % settling time of the Butterworth form of order ``n`` and radius 1 (its step response: scipy)."""
+    return settling_time(butterworth(_order(n), 1.0))
 
 
-def butterworth_omega(n: int, t_settle: float) -> float:
-    """Radius ``omega0`` for which the Butterworth form settles (5 %) in ``t_settle``."""
-    return _normalised_butterworth_settling(_order(n)) / require_positive("t_settle", t_settle)
+def butterworth_omega(n: int, t_settle: float, normalised: float | None = None) -> float:
+    """Radius ``omega0`` for which the Butterworth form settles (5 %) in ``t_settle``; ``normalised``: its
+    :func:`butterworth_settling` computed before (an FMU designing at initialisation has no scipy)."""
+    normalised = butterworth_settling(_order(n)) if normalised is None else normalised
+    return normalised / require_positive("t_settle", t_settle)
+
+
+def butterworth_poles(n: int, omega0: float) -> np.ndarray:
+    """The roots of :func:`butterworth`, ``omega0 exp(i pi (2k + n - 1) / (2n))``, from their real and imaginary
+    parts (no complex function: the C runtime of wine 8 lacks them); a real root's imaginary part is exactly 0."""
+    n = _order(n)
+    angle = np.pi * (2 * np.arange(1, n // 2 + 1) + n - 1) / (2 * n)      # the upper half plane's, k <= n / 2
+    real, imaginary = omega0 * np.cos(angle), omega0 * np.sin(angle)
+    pairs = [complex(r, i) for r, i in zip(real, imaginary)] + [complex(r, -i) for r, i in zip(real, imaginary)]
+    return np.array(pairs + ([complex(-omega0, 0.0)] if n % 2 else []))       # exact conjugates, and -omega0
 
 
 FORMS = ("binomial", "butterworth")
 
 
-def standard_poles(n: int, t_settle: float, form: str = "binomial") -> np.ndarray:
+def standard_poles(n: int, t_settle: float, form: str = "binomial", normalised: float | None = None) -> np.ndarray:
     """Roots of the standard ``form`` of order ``n`` that settles in ``t_settle`` seconds.
 
     ``form`` is ``"binomial"`` (paper 002: ``T = t_settle / (3n)``, an n-fold pole at
-    ``-1/T``) or ``"butterworth"`` (5 % settling time matched numerically).
+    ``-1/T``) or ``"butterworth"`` (5 % settling time matched numerically; ``normalised``: its
+    :func:`butterworth_settling`, when computed before).
     """
     if form == "binomial":
         n = _order(n)
         return np.full(n, -3.0 * n / require_positive("t_settle", t_settle))
     if form == "butterworth":
-        return np.roots(butterworth(n, butterworth_omega(n, t_settle)))
+        return butterworth_poles(n, butterworth_omega(n, t_settle, normalised))
     raise ParameterError(f"form: unknown standard form {form!r}; choose one of {FORMS}")

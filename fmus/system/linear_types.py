@@ -311,19 +311,18 @@ def _discrete_kalman(values: dict, context: Context, model, table: dict) -> np.n
 
 def _carried_design(values: dict, table: dict, context: Context, gain: str, channels: int, channel: str,
                     A: np.ndarray):
-    """The design the FMU carries as its parameter (``tunable``), or None: the gain itself is.  The Butterworth
-    form needs scipy's step response, and complex poles with several outputs (inputs) scipy's place_poles (a
-    shift of a plant with complex eigenvalues); an FMU carries numpy only, so their gain stays the parameter
-    (said in the build's notes)."""
+    """The design the FMU carries as its parameter (``tunable``), or None: the gain itself is.  Complex poles with
+    several outputs (inputs) need scipy's place_poles (a shift of a plant with complex eigenvalues, the
+    Butterworth form); an FMU carries numpy only, so their gain stays the parameter (said in the build's notes)."""
     design = _design(table) if values["tunable"] else None
     if design is None:
         return None
-    complex_poles = channels > 1 and design[0] == "shift" and np.any(np.linalg.eigvals(A).imag != 0)
-    if complex_poles or (design[0] == "t_settle" and design[2] != "binomial"):
-        why = f"complex poles with several {channel}s" if complex_poles else "the butterworth form"
-        context.notes.append(f"{context.prefix.rstrip('.')}: {gain} is the FMU's parameter ({why} need scipy, which "
-                             "an FMU does not carry: tunable designs are real poles, binomial t_settle, or a shift "
-                             f"of real eigenvalues with several {channel}s)")
+    complex_poles = design[0] == "shift" and np.any(np.linalg.eigvals(A).imag != 0) or \
+        design[0] == "t_settle" and design[2] == "butterworth" and len(A) > 1
+    if channels > 1 and complex_poles:
+        context.notes.append(f"{context.prefix.rstrip('.')}: {gain} is the FMU's parameter (complex poles with "
+                             f"several {channel}s need scipy, which an FMU does not carry: tunable designs with "
+                             f"several {channel}s are real poles, binomial t_settle, or a shift of real eigenvalues)")
         return None
     return design
 
@@ -340,8 +339,8 @@ def _riccati_design(values: dict, name: str, gain):
 def _tunable(gain: str, channel: str) -> Field:
     return Field("tunable", "boolean", f"the design (`t_settle`, `shift`, real `poles`, or `Q` and `R`) is the FMU's "
                  f"parameter and {gain} is designed from it at initialisation (`--set`, `--vary`, importers change "
-                 f"it); false, or the butterworth form, or a shift of complex eigenvalues with several {channel}s: "
-                 f"{gain} itself is the parameter", True, example="false")
+                 f"it); false, or complex poles (the butterworth form, a shift of complex eigenvalues) with several "
+                 f"{channel}s: {gain} itself is the parameter", True, example="false")
 
 
 def _design(table: dict):

@@ -23,6 +23,7 @@ from obsfmu.observers.modal import (
     shifted_poles,
     transient_growth,
 )
+from obsfmu.observers.standard_forms import butterworth_settling
 from obsfmu.observers.riccati import (
     checked_weight,
     dkalman_newton,
@@ -99,7 +100,8 @@ def _placed(A, p, options, designer, closed_loop, loop_text: str) -> np.ndarray:
     if design == "shift":
         poles = shifted_poles(A, float(p["shift"]), "shift")
     elif design == "t_settle":
-        poles = desired_poles(len(A), t_settle=float(p["t_settle"]), form=options["form"], name="t_settle")
+        poles = desired_poles(len(A), t_settle=float(p["t_settle"]), form=options["form"], name="t_settle",
+                              normalised=options.get("settling"))
     else:
         poles = desired_poles(len(A), poles=np.ravel(p["poles"]), name="poles")
     gain = designer(poles, design)
@@ -223,12 +225,18 @@ def _design_parameters(design, gain: Parameter, whose: str, designed: str = "") 
     return [Parameter.of(name, value, f"{whose} poles (real); {computed}", "1/s")]
 
 
-def _design_options(design) -> dict:
+def _design_options(design, order: int) -> dict:
+    """What the FMU's design needs besides its parameters: the Riccati iteration's start (the build's gain), the
+    standard form of ``t_settle`` and the Butterworth form's settling time at radius 1 for the loop's ``order``
+    (scipy computes it; an FMU has none)."""
     if design is None:
         return {}
-    if design[0] in RICCATI:       # the build's gain: where Newton's iteration starts
+    if design[0] in RICCATI:
         return {"design": design[0], "initial_gain": np.asarray(design[2], dtype=float).tolist()}
-    return {"design": design[0], "form": design[2]}
+    options = {"design": design[0], "form": design[2]}
+    if design[0] == "t_settle" and design[2] == "butterworth":
+        options["settling"] = butterworth_settling(order)
+    return options
 
 
 def observer_definition(model_name: str, model: StateSpace, N, x_hat0, units: dict,
@@ -242,7 +250,7 @@ def observer_definition(model_name: str, model: StateSpace, N, x_hat0, units: di
         model_name=model_name,
         kind="luenberger-observer",
         feedthrough=bool(np.any(model.D)),
-        options=_design_options(design),
+        options=_design_options(design, model.n),
         description=description or ("discrete Luenberger observer x_hat[k+1] = A x_hat + B u + N (y - C x_hat - D u)"
                                     if model.discrete else "Luenberger observer x_hat' = A x_hat + B u + N (y - C x_hat "
                                     "- D u)") + f", eig(A - N C) = [{poles_text}]",
@@ -283,7 +291,7 @@ def feedback_definition(model_name: str, K, units: dict, description: str, desig
         model_name=model_name,
         kind="state-feedback",
         feedthrough=True,
-        options=_design_options(design),
+        options=_design_options(design, n),
         description=description or "modal state feedback u = -K x_hat + r",
         parameters=_design_model(model, design) + _design_parameters(
             design, Parameter.of("K", K, "state-feedback gain (eig(A - B K) Hurwitz)", drop_axes=(0,)),
@@ -312,7 +320,7 @@ def integral_feedback_definition(model_name: str, K, K_i, units: dict, descripti
         model_name=model_name,
         kind="integral-state-feedback",
         feedthrough=True,
-        options=_design_options(design),
+        options=_design_options(design, n + p),
         description=description or "state feedback with integral action u = -K x_hat - K_i z, z' = y - r",
         parameters=_design_model(model, design, with_C=True) + gains,
         inputs=[
