@@ -8,6 +8,7 @@ must place the poles and keep the transient bounded.  Each designed gain is adde
 from __future__ import annotations
 
 import numpy as np
+
 from obsfmu.observers.checks import ParameterError, require_hurwitz
 from obsfmu.observers.feedback import integral_augmented
 from obsfmu.observers.linearise import linearise
@@ -18,12 +19,8 @@ from obsfmu.observers.standard_forms import FORMS
 
 from ..config import design_gain, require_bounded_transient
 from ..runtime.kinds.expression import expression_plant_definition
-from ..runtime.kinds.linear import (
-    feedback_definition,
-    integral_feedback_definition,
-    observer_definition,
-    plant_definition,
-)
+from ..runtime.kinds.linear import (feedback_definition, integral_feedback_definition, observer_definition,
+                                   plant_definition)
 from .inmemory import component_block
 from .schema import Context, Field, register
 from .values import MAX_DIMENSION

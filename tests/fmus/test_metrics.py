@@ -3,6 +3,7 @@ and a sweep's summary warns when it exceeds the tolerance."""
 
 import numpy as np
 import pytest
+
 from obsfmu.fmus.campaign.measures import Measure
 from obsfmu.fmus.campaign.table import _noise_lines
 from obsfmu.fmus.metrics import fluctuation

@@ -3,16 +3,11 @@ against SciPy's Schur-method solvers, from any stabilising start; bad weights an
 
 import numpy as np
 import pytest
+from scipy.linalg import solve_continuous_are, solve_discrete_are
+
 from obsfmu.observers.checks import ParameterError
 from obsfmu.observers.modal import place
-from obsfmu.observers.riccati import (
-    checked_weight,
-    dkalman_newton,
-    dlqr_newton,
-    kalman_newton,
-    lqr_newton,
-)
-from scipy.linalg import solve_continuous_are, solve_discrete_are
+from obsfmu.observers.riccati import checked_weight, dkalman_newton, dlqr_newton, kalman_newton, lqr_newton
 
 
 def problems(count: int, discrete: bool):

@@ -5,9 +5,10 @@ import warnings
 
 import numpy as np
 import pytest
+from scipy.signal import place_poles
+
 from obsfmu.observers.modal import place, pole_deviation
 from obsfmu.observers.robust_placement import robust_place
-from scipy.signal import place_poles
 
 
 def random_problems(count: int):

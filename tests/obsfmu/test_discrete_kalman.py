@@ -4,9 +4,10 @@ the FMUs and checked against an independent numpy loop of plant and predictor.""
 
 import numpy as np
 import pytest
-from test_kalman import built_gain
 
 import obsfmu
+
+from test_kalman import built_gain
 
 control = pytest.importorskip("control")
 

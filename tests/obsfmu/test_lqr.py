@@ -4,9 +4,10 @@ its Lyapunov value, and bad requests named."""
 import numpy as np
 import pytest
 from scipy.linalg import solve_continuous_lyapunov
-from test_kalman import built_gain
 
 import obsfmu
+
+from test_kalman import built_gain
 
 control = pytest.importorskip("control")
 

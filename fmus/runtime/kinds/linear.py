@@ -7,29 +7,15 @@ Each kind has a factory (FMU parameters -> block) and a definition function
 from __future__ import annotations
 
 import numpy as np
+
 from obsfmu.observers.checks import ParameterError
-from obsfmu.observers.feedback import (
-    IntegralStateFeedback,
-    StateFeedback,
-    integral_augmented,
-)
+from obsfmu.observers.feedback import IntegralStateFeedback, StateFeedback, integral_augmented
 from obsfmu.observers.lti_model import StateSpace
 from obsfmu.observers.luenberger import LuenbergerObserver
-from obsfmu.observers.modal import (
-    MAX_TRANSIENT_GROWTH,
-    desired_poles,
-    observer_gain,
-    place,
-    shifted_poles,
-    transient_growth,
-)
+from obsfmu.observers.modal import (MAX_TRANSIENT_GROWTH, desired_poles, observer_gain, place, shifted_poles,
+                                   transient_growth)
+from obsfmu.observers.riccati import checked_weight, dkalman_newton, kalman_newton, lqr_newton
 from obsfmu.observers.standard_forms import butterworth_settling
-from obsfmu.observers.riccati import (
-    checked_weight,
-    dkalman_newton,
-    kalman_newton,
-    lqr_newton,
-)
 from obsfmu.plants.lti import LTIPlant
 
 from ..definition import FmuDefinition, Parameter, Port
