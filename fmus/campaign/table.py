@@ -22,7 +22,6 @@ LEADING_COLUMNS = ("status", "reason", "converged", "convergence_time", "final_e
 QUANTILES = (0.0, 0.05, 0.25, 0.5, 0.75, 0.95, 1.0)
 
 
-
 def stop_in_time_unit(plan) -> float:
     """The stop time in the unit of the convergence time (samples for a measure in samples)."""
     return plan.settings["stop_time"] / (plan.settings["step"] if plan.time_unit == "samples" else 1.0)
