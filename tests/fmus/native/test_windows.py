@@ -258,6 +258,52 @@ def dcmotor_dual(mingw, tmp_path_factory):
     return {path.stem: path for path in sorted(out.glob("*.fmu"))}
 
 
+#: designs an FMU computes at initialisation with complex poles (issue 38): a Butterworth observer and a shift of a
+#: plant's complex eigenvalues -- complex numpy under wine, which lacks the C runtime's complex functions
+DESIGNS = """name = "designs"
+connections = ["plant.y -> observer.y", "observer.x_hat -> controller.x_hat", "controller.u -> plant.u",
+               "controller.u -> observer.u"]
+
+[experiment]
+stop_time = 2.0
+step = 0.01
+
+[components.plant]
+kind = "lti"
+A = [[0, 1], [-4, -0.4]]
+B = [[0], [1]]
+C = [[1, 0]]
+x0 = [1, 0]
+
+[components.observer]
+kind = "luenberger"
+plant = "plant"
+t_settle = 0.5
+form = "butterworth"
+x_hat0 = [0.5, 0.5]
+
+[components.controller]
+kind = "state-feedback"
+plant = "plant"
+shift = 2
+
+[values]
+"controller.r" = 0.0
+"""
+
+
+@pytest.fixture(scope="module")
+def designs_dual(mingw, tmp_path_factory):
+    """FMUs that design their gains at initialisation from complex poles, for both platforms."""
+    out = tmp_path_factory.mktemp("designs dual")
+    (out / "designs.toml").write_text(DESIGNS)
+    completed = subprocess.run([sys.executable, "-m", "obsfmu", "build", "--config", str(out / "designs.toml"),
+                                "--platform", DUAL, "--out", str(out)], capture_output=True, text=True, timeout=900,
+                               cwd=ROOT)
+    assert completed.returncode == 0, completed.stdout[-2000:] + completed.stderr[-2000:]
+    return {path.stem: path for path in sorted(out.glob("*.fmu")) if path.stem != "designs_plant"}
+
+
 def fmpy_jobs(fmus: dict[str, Path], folder: Path, as_path) -> list[dict]:
     """One short run per FMU at its DefaultExperiment's step (100 steps at most): unzipped folders (fmpy
     simulates those as they are), and ``ship_plant`` as the .fmu file, which fmpy unzips itself."""
@@ -272,11 +318,11 @@ def fmpy_jobs(fmus: dict[str, Path], folder: Path, as_path) -> list[dict]:
 
 
 @pytest.fixture(scope="module")
-def fmpy_runs(wine_host, dual, dcmotor_dual, tmp_path_factory):
+def fmpy_runs(wine_host, dual, dcmotor_dual, designs_dual, tmp_path_factory):
     """model -> (fmpy for Windows's result, fmpy on Linux's result) of every FMU run alone."""
     work = tmp_path_factory.mktemp("fmpy windows")
     python = windows_fmpy(work)
-    fmus = {**dual, **dcmotor_dual}
+    fmus = {**dual, **dcmotor_dual, **designs_dual}
     runner = Path(__file__).with_name("fmpy_runner.py")
     outcome = {}
     for side, as_path in (("windows", windows_path), ("linux", str)):
@@ -301,7 +347,8 @@ def _result(folder: Path, model: str) -> np.ndarray:
 
 @pytest.mark.parametrize("model", sorted({m for s in SCENARIOS.values() for _, m, _ in s.components}
                                          | {f"dcmotor_{c}" for c in ("plant", "reference", "target", "observer",
-                                                                     "controller")}))
+                                                                     "controller")}
+                                         | {"designs_observer", "designs_controller"}))
 def test_fmpy_for_windows_runs_each_fmu_like_fmpy_on_linux(fmpy_runs, model):
     _, outcome = fmpy_runs
     windows, linux = _result(outcome["windows"], model), _result(outcome["linux"], model)
