@@ -77,16 +77,17 @@ def test_the_cli_sets_a_design_by_a_list_and_refuses_a_bad_one_in_one_line(folde
 
 # --- state feedback: the closed loop's design as the FMU's parameter ------------------------------------------
 
-def controlled(design: dict, integral: bool = False) -> obsfmu.System:
-    """The plant under state feedback on its true state (u = -K x + r, or with integral action on y - r)."""
-    system = obsfmu.System("controlled", stop_time=2.0, step=1e-3)
-    system.add("plant", obsfmu.lti(A, B, C, x0=X0))
+def controlled(design: dict, integral: bool = False, name: str = "controlled", plant=None, r=1.0) -> obsfmu.System:
+    """The plant (``plant``: an lti component, default A, B, C from X0) under state feedback on its true state
+    (u = -K x + r, or with integral action on y - r)."""
+    system = obsfmu.System(name, stop_time=2.0, step=1e-3)
+    system.add("plant", plant or obsfmu.lti(A, B, C, x0=X0))
     system.add("controller", kind="state-feedback", plant="plant", integral=integral, **design)
     system.connect("plant.x", "controller.x_hat")
     system.connect("controller.u", "plant.u")
     if integral:
         system.connect("plant.y", "controller.y")
-    system.values["controller.r"] = 1.0
+    system.values["controller.r"] = r
     return system
 
 
@@ -150,12 +151,8 @@ def test_two_outputs_poles_set_at_run_time_place_the_observer_as_control_place(f
 
 
 def test_two_inputs_feedback_set_at_run_time_places_the_loop_as_control_place(folder):
-    system = obsfmu.System("two_inputs", stop_time=2.0, step=1e-3)
-    system.add("plant", obsfmu.lti(A3, B3, C3, x0=X3))
-    system.add("controller", kind="state-feedback", plant="plant", poles=[-2.0, -3.0, -4.0])
-    system.connect("plant.x", "controller.x_hat")
-    system.connect("controller.u", "plant.u")
-    system.values["controller.r"] = [0.0, 0.0]
+    system = controlled({"poles": [-2.0, -3.0, -4.0]}, name="two_inputs", plant=obsfmu.lti(A3, B3, C3, x0=X3),
+                        r=[0.0, 0.0])
     result = obsfmu.run(system.save(folder / "two_inputs.toml"), build_dir=folder / "build",
                         set={"controller.poles": [-5.0, -6.0, -7.0]})
     K = control.place(A3, B3, [-5.0, -6.0, -7.0])
@@ -172,12 +169,7 @@ def test_two_inputs_feedback_set_at_run_time_places_the_loop_as_control_place(fo
 def test_complex_poles_with_several_inputs_keep_their_gain_as_the_parameter_and_say_so(tmp_path):
     oscillating = np.array([[0.0, 1.0, 0.0], [-4.0, 0.0, 0.0], [0.0, 0.0, -1.0]])     # eigenvalues +-2j, -1
     for design in ({"shift": 2.0}, {"t_settle": 2.0, "form": "butterworth"}):
-        system = obsfmu.System("scipy_designs", stop_time=0.1, step=1e-3)
-        system.add("plant", obsfmu.lti(oscillating, B3, C3))
-        system.add("controller", kind="state-feedback", plant="plant", **design)
-        system.connect("plant.x", "controller.x_hat")
-        system.connect("controller.u", "plant.u")
-        system.values["controller.r"] = [0.0, 0.0]
+        system = controlled(design, name="scipy_designs", plant=obsfmu.lti(oscillating, B3, C3), r=[0.0, 0.0])
         spec = obsfmu._internals.load_system(system.save(tmp_path / "scipy_designs.toml"))
         assert [p.name for p in spec.components["controller"].definitions[0].parameters] == ["K"]
         assert any("K is the FMU's parameter (complex poles with several inputs need scipy" in note

@@ -228,7 +228,8 @@ def _design_options(design, order: int) -> dict:
 def observer_definition(model_name: str, model: StateSpace, N, x_hat0, units: dict,
                         description: str, poles, design=None, offsets=None) -> FmuDefinition:
     """Luenberger observer FMU: parameters A, B, C, D, N (or the ``design`` it is computed from at
-    initialisation: ``(name, value, form)``, name one of :data:`DESIGNS`), x_hat0; inputs u, y; outputs x_hat, y_hat.
+    initialisation: ``(name, value, form)``, name one of :data:`DESIGNS`, or ``("kalman", (Q, R), N0)``), x_hat0;
+    inputs u, y; outputs x_hat, y_hat.
     ``offsets``: ``(c, e)`` of a model linearised at an operating point (:mod:`observers.luenberger`)."""
     u, y = _signal_ports(model, units)
     poles_text = ", ".join(f"{complex(p):.6g}".strip("()").replace("+0j", "") for p in poles)

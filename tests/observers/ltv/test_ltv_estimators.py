@@ -45,20 +45,25 @@ def observer(estimator, **options):
                                **GAINS[estimator], **STEPPING, **options)
 
 
-def run(estimator, T, h=1e-2):
-    """Plant then observer, interpolated inputs; per step the true error, the bound and the flag."""
-    p = OutputNonlinearLTVPlant(A, C, cube, K, B, M, X0, **STEPPING)
-    o = observer(estimator)
-    rows = []
+def stepped(p, o, T, h):
+    """Plant then observer for ``T / h`` steps, inputs interpolated over each step: ``(t + h, observer outputs)``."""
     for i in range(int(round(T / h))):
         t = i * h
         y0 = p.outputs(t, {})["y"]
         u = Segment.between([force(t)], [force(t + h)], h)
         p.advance(t, h, {"u": u})
         o.advance(t, h, {"u": u, "y": Segment.between(y0, p.outputs(t + h, {})["y"], h)})
-        out = o.outputs(t + h, {})
+        yield t + h, o.outputs(t + h, {})
+
+
+def run(estimator, T, h=1e-2):
+    """Plant then observer, interpolated inputs; per step the true error, the bound and the flag."""
+    p = OutputNonlinearLTVPlant(A, C, cube, K, B, M, X0, **STEPPING)
+    o = observer(estimator)
+    rows = []
+    for t, out in stepped(p, o, T, h):
         error = float(np.linalg.norm(out["theta_hat"] - THETA))
-        rows.append((t + h, error, o.estimator.error_bound(o.initial_error), out["converged"][0],
+        rows.append((t, error, o.estimator.error_bound(o.initial_error), out["converged"][0],
                      out["excitation"][0], float(np.abs(out["x_hat"] - p.x).max())))
     return np.array(rows)
 
@@ -103,15 +108,8 @@ def run_six_unknowns(delta_floor, T=14.0, h=1e-2):
     p = OutputNonlinearLTVPlant(A, C, cube, K, B, M, X0, **STEPPING)
     o = LTVAdaptiveObserver(A, C, L, cube, unknowns=("k", "m"), b=B, theta_bound=5.0, estimator="drem", gamma=100.0,
                             delta_floor=delta_floor, **STEPPING)
-    theta, rows = np.array([-X0[0], -X0[1], *K, *M]), []
-    for i in range(int(round(T / h))):
-        t = i * h
-        y0 = p.outputs(t, {})["y"]
-        u = Segment.between([force(t)], [force(t + h)], h)
-        p.advance(t, h, {"u": u})
-        o.advance(t, h, {"u": u, "y": Segment.between(y0, p.outputs(t + h, {})["y"], h)})
-        out = o.outputs(t + h, {})
-        rows.append((t + h, np.linalg.norm(out["theta_hat"] - theta), out["converged"][0]))
+    theta = np.array([-X0[0], -X0[1], *K, *M])
+    rows = [(t, np.linalg.norm(out["theta_hat"] - theta), out["converged"][0]) for t, out in stepped(p, o, T, h)]
     return np.array(rows).T
 
 
