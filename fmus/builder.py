@@ -209,6 +209,7 @@ def build_fmu(definition: FmuDefinition, out_dir: Path | str, extra_modules=(), 
                 extra[f"resources/{fmi3.TABLE}"] = table.encode()
             bridges = {name: f"{folder}/{native.bridge_name(name)}" for name, (folder, _, _) in binaries.items()}
             record = _record(guid=guid, package=package, slave_module=f"_slave_{model}", slave_class=model,
+                             **({"kernels": "python"} if definition.kernels == "python" else {}),
                              **({"bridge": bridges[host], **python} if host in platforms else {}),
                              **{f"{name}.bridge": bridges[name] for name in platforms if name != host})
             built_with = {"built_with": versions.running()}

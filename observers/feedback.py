@@ -9,6 +9,7 @@ from typing import Mapping
 
 import numpy as np
 
+from .affine_form import AffineForm, output_map
 from .block import Block, Segment
 from .checks import ParameterError, as_matrix, as_vector
 
@@ -37,6 +38,12 @@ class StateFeedback(Block):
 
     def advance(self, t: float, h: float, inputs: Mapping[str, Segment]) -> None:
         """Nothing to integrate: the block is static."""
+
+    def affine_form(self) -> AffineForm:
+        """The compiled kernel's form: no state, ``u = [-K, I] [x_hat; r]``."""
+        m, n = self.K.shape
+        return AffineForm("", 0, ("x_hat", "r"), False, None,
+                          {"u": output_map(np.zeros((m, 0)), np.hstack([-self.K, np.eye(m)]), inputs=n + m)})
 
 
 class IntegralStateFeedback(Block):
@@ -68,6 +75,18 @@ class IntegralStateFeedback(Block):
         """``z(t + h) = z + h e(t) + h^2 / 2 e'``, ``e = y - r`` linear over the step (exact)."""
         y, r = inputs["y"], inputs["r"]
         self.z = self.z + h * (y.start - r.start) + 0.5 * h * h * (y.slope - r.slope)
+
+    def affine_form(self) -> AffineForm:
+        """The compiled kernel's form: ``z(t + h) = z + h [0, I, -I] w0 + h^2/2 [0, I, -I] dw`` over
+        ``w = [x_hat; y; r]``, ``u = -K_i z - [K, 0, 0] w``."""
+        m, n = self.K.shape
+        p = self.K_i.shape[1]
+        error = np.hstack([np.zeros((p, n)), np.eye(p), -np.eye(p)])      # e = y - r
+
+        def step(h: float):
+            return np.eye(p), h * error, 0.5 * h * h * error
+        return AffineForm("z", p, ("x_hat", "y", "r"), False, step,
+                          {"u": output_map(-self.K_i, np.hstack([-self.K, np.zeros((m, 2 * p))]), inputs=n + 2 * p)})
 
 
 

@@ -27,6 +27,7 @@ from typing import Mapping
 
 import numpy as np
 
+from .affine_form import AffineForm, output_map
 from .block import Segment
 from .checks import ParameterError, as_matrix, as_vector, require_hurwitz
 from .integrators import DEFAULT_SUBSTEP_BUDGET, LinearPropagator, require_budget
@@ -97,6 +98,18 @@ class LuenbergerObserver(SampledBlock):
         start = np.concatenate([u.start, y.start] + ([[1.0]] if self._affine else []))
         slope = np.concatenate([u.slope, y.slope] + ([[0.0]] if self._affine else []))
         self.x_hat = self._propagator.step(self.x_hat, h, start, slope)
+
+    def affine_form(self) -> AffineForm | None:
+        """The compiled kernel's form of this observer (continuous only; the discrete predictor steps in Python):
+        ``w = [u; y]`` (and 1 with the offsets), the outputs ``x_hat = x`` and ``y_hat = C x + D u + e``."""
+        if self._propagator is None:
+            return None
+        m = self.model
+        inputs = m.m + m.p
+        return AffineForm("x_hat", m.n, ("u", "y"), self._affine, self._propagator.matrices,
+                          {"x_hat": output_map(np.eye(m.n), inputs=inputs),
+                           "y_hat": output_map(m.C, np.hstack([m.D, np.zeros((m.p, m.p))]), self.output_offset,
+                                               inputs)})
 
     def sample_period(self) -> float:
         return self.model.dt

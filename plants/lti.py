@@ -13,6 +13,7 @@ from typing import Mapping
 
 import numpy as np
 
+from obsfmu.observers.affine_form import AffineForm, output_map
 from obsfmu.observers.block import Segment
 from obsfmu.observers.checks import as_vector
 from obsfmu.observers.integrators import DEFAULT_SUBSTEP_BUDGET, LinearPropagator, require_budget
@@ -55,6 +56,14 @@ class LTIPlant(SampledBlock):
             self.x = self._propagator.step(self.x, h, u.start, u.slope)
             return
         super().advance(t, h, inputs)
+
+    def affine_form(self) -> AffineForm | None:
+        """The compiled kernel's form of this plant (continuous only; a discrete one steps in Python)."""
+        if self._propagator is None:
+            return None
+        m = self.model
+        return AffineForm("x", m.n, ("u",), False, self._propagator.matrices,
+                          {"y": output_map(m.C, m.D, inputs=m.m), "x": output_map(np.eye(m.n), inputs=m.m)})
 
     def sample_period(self) -> float:
         return self.model.dt

@@ -33,11 +33,14 @@ def cmd_build(args) -> int:
     if args.config:  # checked whole before anything is written
         from ..system.commands import build_definitions, definitions_of
         definitions = definitions_of(args.config)
+        for definition in definitions:
+            definition.kernels = args.kernels
     out = check_directory("--out", args.out)
     if args.config:
         paths = build_definitions(definitions, out, args.fmi_version, args.standalone, args.platform)
     else:
-        paths = build_all(out, args.fmi_version, args.standalone, args.platform, force=args.rebuild)
+        paths = build_all(out, args.fmi_version, args.standalone, args.platform, force=args.rebuild,
+                          kernels=args.kernels)
     return 1 if report_built(paths) else 0
 
 
@@ -170,6 +173,10 @@ def configure_build(parser) -> None:
     add_fmi_version(parser)
     add_standalone(parser)
     add_platform(parser)
+    parser.add_argument("--kernels", choices=("c", "python"), default="c",
+                        help="c (default): linear blocks (LTI plant, Luenberger observer, state feedback) step in "
+                             "compiled C inside the FMU, the rest in Python; python: every step in Python (the "
+                             "reference path; docs/performance.md)")
     parser.add_argument("--rebuild", action="store_true",
                         help="build every scenario FMU again even if the one in --out is current (by default an "
                              "FMU is reused when its build record beside it says it is the file built from "

@@ -34,13 +34,13 @@ def report_built(paths) -> int:
 
 
 def build_all(build_dir: Path, fmi_version: int = 2, standalone: bool = False, platforms=None,
-              force: bool = False) -> list[Path]:
+              force: bool = False, kernels: str = "c") -> list[Path]:
     """Every distinct FMU of the scenarios, each built once (ltv-ls and ltv-ls-bounded share theirs), with
     binaries for ``platforms`` (default: this machine's); one that is current (judged by content,
     :func:`fmus.builder.why_not_current`) is kept unless ``force``."""
     from ..scenarios import SCENARIOS, ensure_all
     return list(ensure_all(SCENARIOS.values(), build_dir, force=force, fmi_version=fmi_version,
-                           standalone=standalone, platforms=platforms).values())
+                           standalone=standalone, platforms=platforms, kernels=kernels).values())
 
 
 def figure_paths(option: str, path: str) -> list[Path]:

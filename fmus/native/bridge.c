@@ -35,12 +35,15 @@
  *   batch_plan(input vrs, slopes: bool, output vrs) -> (values, slopes, outputs) float64 vectors,
  *   step_batched(t, h) -> bool (obsfmuDoStepBatched: the vectors filled and read in place),
  *   log_queue: list of messages with .status, .category, .msg (drained after each call);
+ *   kernel_load() -> (layout int64, memory float64) | None | False, kernel_store(), kernel_matrices(h) -> bool
+ *   (the compiled step kernel of a linear block, kernel.h: see "the kernel" below);
  *   class attribute Refused: the exception type of refused calls.
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 
 #include "obsfmu_native.h"
+#include "kernel.h"
 
 #ifdef _WIN32
 #define OBSFMU_BRIDGE_EXPORT __declspec(dllexport) /* win64: linked to python3X.dll by its name */
@@ -59,6 +62,19 @@ typedef struct {
     int slopes;
 } Batch;
 
+/* The compiled step kernel (kernel.h) of an instance: the slave's image, bound while the calls run in C. */
+typedef struct {
+    int off;            /* kernels=python in the record, or OBSFMU_KERNELS=python: Python steps */
+    int never;          /* the slave has no kernel for this instance (until fmi2Reset) */
+    int armed;          /* initialization is over: the slave may hand an image */
+    int wanted;         /* ask the slave for an image (it said "not now"; a call has reached Python since) */
+    int loaded;         /* the image is bound: inputs, steps and outputs run in C */
+    int dirty;          /* the kernel changed the image since it was loaded */
+    PyObject *memory, *layout;
+    Py_buffer views[2]; /* of memory and layout */
+    KernelImage image;
+} Kernel;
+
 typedef struct {
     PyObject *slave_class;
     PyObject *refusal;  /* slave_class.Refused: the exception of a refused call (NULL: none) */
@@ -72,7 +88,10 @@ typedef struct {
     int refused;        /* the last call returned fmi2Error because the slave refused it */
     size_t variables;   /* len(slave.vars): the number of its scalar variables */
     Batch batch;        /* obsfmuDoStepBatched's buffers (bound on first use) */
+    Kernel kernel;      /* the compiled step kernel, when the slave has one */
 } Component;
+
+static void kernel_release(Component *c);
 
 /* ------------------------------------------------------------------ logging */
 
@@ -182,9 +201,11 @@ static fmi2Status call(Component *c, const char *method, PyObject *args, PyObjec
     return status;
 }
 
+/* every call that reaches Python: the kernel's image written back into the slave first */
 #define WITH_GIL(body)                                  \
     PyGILState_STATE gil_ = PyGILState_Ensure();        \
     fmi2Status status_ = fmi2OK;                        \
+    kernel_release(c);                                  \
     body;                                               \
     PyGILState_Release(gil_);                           \
     return status_;
@@ -349,9 +370,106 @@ static void drop_batch(Batch *b)
     memset(b, 0, sizeof *b);
 }
 
+/* ------------------------------------------------------------------ the kernel (kernel.h)
+ *
+ * The calls that run in C -- fmi2SetReal of inputs, fmi2SetRealInputDerivatives, fmi2GetReal of inputs, outputs
+ * and parameters, fmi2DoStep and obsfmuDoStepBatched -- take the image of the slave (kernel_load) once after
+ * initialization, and keep it while only they are called: no GIL, no Python.  Any other call, and any call the
+ * kernel cannot vouch for, writes the image back into the slave (kernel_release -> slave.kernel_store) and is
+ * carried out in Python, which may change anything: the image is taken again by the next call that can run in
+ * C.  So the slave's state, its FMU states and its refusals are those of the Python path. */
+
+static void kernel_drop(Kernel *k)
+{
+    if (k->loaded) {
+        PyBuffer_Release(&k->views[0]);
+        PyBuffer_Release(&k->views[1]);
+    }
+    Py_CLEAR(k->memory);
+    Py_CLEAR(k->layout);
+    k->loaded = k->dirty = 0;
+}
+
+/* Before a call reaches Python (GIL held): the image back into the slave, and let go. */
+static void kernel_release(Component *c)
+{
+    Kernel *k = &c->kernel;
+    if (k->loaded && k->dirty) {
+        PyObject *done = PyObject_CallMethod(c->instance, "kernel_store", NULL);
+        if (done == NULL) python_error(c, "kernel_store"); /* a bug; the slave keeps its state from before */
+        Py_XDECREF(done);
+    }
+    kernel_drop(k);
+    k->wanted = 1;
+}
+
+/* 1 when the image is bound (taken now if the slave hands one); 0: this call goes to Python. */
+static int kernel_ready(Component *c)
+{
+    Kernel *k = &c->kernel;
+    if (k->loaded) return 1;
+    if (k->off || k->never || !k->armed || !k->wanted) return 0;
+    PyGILState_STATE gil = PyGILState_Ensure();
+    PyObject *image = PyObject_CallMethod(c->instance, "kernel_load", NULL);
+    k->wanted = 0;
+    if (image == NULL) {
+        python_error(c, "kernel_load"); /* a bug: logged, and Python steps this instance */
+        k->never = 1;
+    } else if (image == Py_False) {
+        k->never = 1;
+    } else if (PyTuple_Check(image) && PyTuple_Size(image) == 2) {
+        k->layout = PyTuple_GET_ITEM(image, 0);
+        k->memory = PyTuple_GET_ITEM(image, 1);
+        Py_INCREF(k->layout);
+        Py_INCREF(k->memory);
+        int bound = 0;
+        if (PyObject_GetBuffer(k->memory, &k->views[0], PyBUF_WRITABLE | PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) == 0) {
+            if (PyObject_GetBuffer(k->layout, &k->views[1], PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) == 0) bound = 2;
+            else PyBuffer_Release(&k->views[0]);
+        }
+        PyErr_Clear();
+        if (bound == 2 && k->views[0].itemsize == sizeof(double) && k->views[1].itemsize == sizeof(int64_t) &&
+            kernel_bind(&k->image, k->views[0].buf, (size_t)k->views[0].len / sizeof(double), k->views[1].buf,
+                        (size_t)k->views[1].len / sizeof(int64_t)) == 0) {
+            k->loaded = 1;
+        } else {
+            if (bound == 2) {
+                PyBuffer_Release(&k->views[0]);
+                PyBuffer_Release(&k->views[1]);
+            }
+            Py_CLEAR(k->memory);
+            Py_CLEAR(k->layout);
+            log_message(c, fmi2Warning, "logStatusWarning", "the step kernel's image does not fit this bridge: "
+                        "the FMU steps in Python (rebuild it with this obsfmu)");
+            k->never = 1;
+        }
+    }
+    Py_XDECREF(image);
+    PyGILState_Release(gil);
+    return k->loaded;
+}
+
+/* The kernel's step (asking the slave for the matrices of a new step size h); 1 when taken in C. */
+static int kernel_advance(Component *c, double t, double h)
+{
+    KernelImage *image = &c->kernel.image;
+    int taken = kernel_step(image, t, h);
+    if (taken < 0) {
+        PyGILState_STATE gil = PyGILState_Ensure();
+        PyObject *done = PyObject_CallMethod(c->instance, "kernel_matrices", "di", h, image->slot);
+        if (done == NULL) PyErr_Clear(); /* a bug in the slave: the Python path steps (and says what is wrong) */
+        if (done == Py_True) taken = kernel_step(image, t, h);
+        Py_XDECREF(done);
+        PyGILState_Release(gil);
+    }
+    if (taken > 0) c->kernel.dirty = 1;
+    return taken > 0;
+}
+
 static void free_component(Component *c)
 {
     if (c == NULL) return;
+    kernel_drop(&c->kernel);
     drop_batch(&c->batch);
     release_instance(c->instance);
     Py_XDECREF(c->refusal);
@@ -443,6 +561,10 @@ static fmi2Component instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2
     c->visible = visible;
     c->logging_on = loggingOn;
     char *record = c->resources ? obsfmu_read_record(c->resources) : NULL;
+    char kernels[32];
+    const char *wish = getenv("OBSFMU_KERNELS");
+    c->kernel.off = (wish && strcmp(wish, "python") == 0) ||
+                    (record && strcmp(obsfmu_record_value(record, "kernels", kernels, sizeof kernels), "python") == 0);
     if (c->name == NULL || record == NULL) {
         free(record);
         free_component(c);
@@ -513,8 +635,16 @@ static fmi2Status setup_experiment(fmi2Component component, fmi2Boolean toleranc
     }
 
 SIMPLE_CALL(enter_initialization_mode, "enter_initialization_mode")
-SIMPLE_CALL(exit_initialization_mode, "exit_initialization_mode")
 SIMPLE_CALL(terminate, "terminate")
+
+static fmi2Status exit_initialization_mode(fmi2Component component)
+{
+    COMPONENT
+    WITH_GIL({
+        status_ = call(c, "exit_initialization_mode", PyTuple_New(0), NULL);
+        if (status_ < fmi2Error) c->kernel.armed = 1;
+    })
+}
 
 static fmi2Status reset(fmi2Component component)
 {
@@ -527,6 +657,7 @@ static fmi2Status reset(fmi2Component component)
             drop_batch(&c->batch);
             release_instance(c->instance);
             c->instance = fresh;
+            c->kernel.armed = c->kernel.never = 0;
             status_ = drain_log(c);
         }
     })
@@ -551,6 +682,7 @@ static fmi2Status get_values(Component *c, const char *method, const fmi2ValueRe
 static fmi2Status get_real(fmi2Component component, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[])
 {
     COMPONENT
+    if (kernel_ready(c) && kernel_get(&c->kernel.image, vr, nvr, value)) return fmi2OK;
     WITH_GIL({
         PyObject *values = NULL;
         status_ = get_values(c, "get_real", vr, nvr, &values);
@@ -564,6 +696,7 @@ static fmi2Status get_integer(fmi2Component component, const fmi2ValueReference 
                               fmi2Integer value[])
 {
     COMPONENT
+    if (kernel_ready(c) && kernel_get_integers(&c->kernel.image, vr, nvr, value)) return fmi2OK;
     WITH_GIL({
         PyObject *values = NULL;
         status_ = get_values(c, "get_integer", vr, nvr, &values);
@@ -627,10 +760,21 @@ static PyObject *string_object(fmi2String text) { return PyUnicode_FromString(te
         })                                                                                             \
     }
 
-SETTER(set_real, "set_real", fmi2Real, PyFloat_FromDouble)
+SETTER(set_real_python, "set_real", fmi2Real, PyFloat_FromDouble)
 SETTER(set_integer, "set_integer", fmi2Integer, PyLong_FromLong)
 SETTER(set_boolean, "set_boolean", fmi2Boolean, PyBool_FromLong)
 SETTER(set_string, "set_string", fmi2String, string_object)
+
+static fmi2Status set_real(fmi2Component component, const fmi2ValueReference vr[], size_t nvr, const fmi2Real value[])
+{
+    Component *c = (Component *)component;
+    if (c != NULL && kernel_ready(c) && kernel_set_inputs(&c->kernel.image, vr, nvr, value)) {
+        c->refused = 0;
+        c->kernel.dirty = 1;
+        return fmi2OK;
+    }
+    return set_real_python(component, vr, nvr, value);
+}
 
 /* ---- FMU state: the slave's, holding the loader's fields (ObsfmuMachine) */
 
@@ -760,6 +904,10 @@ static fmi2Status set_real_input_derivatives(fmi2Component component, const fmi2
                                              const fmi2Integer order[], const fmi2Real value[])
 {
     COMPONENT
+    if (kernel_ready(c) && kernel_set_derivatives(&c->kernel.image, vr, nvr, order, value)) {
+        c->kernel.dirty = 1;
+        return fmi2OK;
+    }
     WITH_GIL({
         PyObject *orders = PyList_New((Py_ssize_t)nvr);
         PyObject *values = PyList_New((Py_ssize_t)nvr);
@@ -804,6 +952,7 @@ static fmi2Status do_step(fmi2Component component, fmi2Real currentCommunication
 {
     (void)noSetFMUStatePriorToCurrentPoint;
     COMPONENT
+    if (kernel_ready(c) && kernel_advance(c, currentCommunicationPoint, communicationStepSize)) return fmi2OK;
     WITH_GIL({
         PyObject *result = NULL;
         status_ = call(c, "do_step", Py_BuildValue("(dd)", currentCommunicationPoint, communicationStepSize),
@@ -872,6 +1021,17 @@ static fmi2Status do_step_batched(fmi2Component component, fmi2Real t, fmi2Real 
 {
     *stepped = 0;
     COMPONENT
+    /* in C: the inputs, their slopes, the step and the outputs; anything the kernel cannot vouch for: all of it in
+     * Python (which sets the same inputs and slopes again) */
+    if (kernel_ready(c) && kernel_readable(&c->kernel.image, out_vr, nout) &&
+        kernel_set_inputs(&c->kernel.image, vr, nvr, value)) {
+        c->kernel.dirty = 1;
+        if ((slope == NULL || kernel_set_derivatives(&c->kernel.image, vr, nvr, NULL, slope)) &&
+            kernel_advance(c, t, h) && kernel_get(&c->kernel.image, out_vr, nout, out)) {
+            *stepped = 1;
+            return fmi2OK;
+        }
+    }
     WITH_GIL({
         status_ = bind_batch(c, vr, nvr, slope != NULL, out_vr, nout);
         if (status_ < fmi2Error) {

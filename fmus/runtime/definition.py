@@ -146,6 +146,9 @@ class FmuDefinition:
     #: what a check found and the file chose to build anyway (``check = false``): logged by the FMU as a
     #: warning at every instantiation, so the importer's log keeps it
     warnings: list[str] = field(default_factory=list)
+    #: ``"c"``: steps in the compiled kernel when the block has one (linear blocks: fmus/runtime/slave/kernel.py);
+    #: ``"python"``: always in Python (``obsfmu build --kernels python``)
+    kernels: str = "c"
 
     def to_json(self) -> str:
         return json.dumps(asdict(self), indent=1)

@@ -206,14 +206,16 @@ def ensure_fmus(scenario: Scenario, build_dir: Path, force: bool = False, fmi_ve
 
 
 def ensure_all(scenarios, build_dir: Path, force: bool = False, fmi_version: int = 2,
-               standalone: bool = False, platforms=None) -> dict[str, Path]:
-    """Every distinct FMU of ``scenarios``, each built once (``ltv-ls`` and ``ltv-ls-bounded`` share theirs).
+               standalone: bool = False, platforms=None, kernels: str = "c") -> dict[str, Path]:
+    """Every distinct FMU of ``scenarios``, each built once (``ltv-ls`` and ``ltv-ls-bounded`` share theirs);
+    ``kernels`` ``"python"``: FMUs that always step in Python (:attr:`FmuDefinition.kernels`).
 
     Two scenarios naming the same model must define it identically (else :class:`SimulationError`).
     """
     distinct: dict[str, tuple] = {}
     for scenario in scenarios:
         for definition, extra_modules in _items(scenario):
+            definition = replace(definition, kernels=kernels)
             known = distinct.setdefault(definition.model_name, (definition, extra_modules, scenario.name))
             if (known[0].to_json(), known[1]) != (definition.to_json(), extra_modules):
                 raise SimulationError(f"{definition.model_name}: scenarios {known[2]!r} and {scenario.name!r} "

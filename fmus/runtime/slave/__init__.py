@@ -14,6 +14,7 @@ advances it step by step.  It is made of one part per concern, each a file of th
 * :mod:`.block` -- the block of the parameters, its outputs, the start of a run;
 * :mod:`.step` -- the step of an FMU: ``do_step`` and the native binary's one-call ``step_batched``, one step;
 * :mod:`.state` -- FMU states: get, set, serialize;
+* :mod:`.kernel` -- the image of the compiled step kernel (linear blocks step in C, issue 39);
 * :mod:`.description` -- modelDescription.xml;
 * :mod:`.versions` -- the numpy and scipy the FMU was built with, against the running ones;
 * :mod:`.common`, :mod:`.numerics`, :mod:`.plan` -- what they share.
@@ -48,6 +49,7 @@ from ..definition import FmuDefinition
 from .block import BlockOfParameters
 from .common import InputMode, Refused, interpolation_parameter, slices
 from .description import CAPABILITIES, ModelDescription
+from .kernel import Kernels
 from .numerics import numerics_context
 from .plan import BatchPlan
 from .state import FmuState, FmuStates
@@ -58,7 +60,7 @@ from .variables import Variables
 __all__ = ["BlockSlave", "InputMode", "FmuState", "Refused", "CAPABILITIES", "interpolation_parameter"]
 
 
-class BlockSlave(Variables, BlockOfParameters, Stepping, FmuStates, ModelDescription, Fmi2Slave):
+class BlockSlave(Variables, BlockOfParameters, Stepping, FmuStates, Kernels, ModelDescription, Fmi2Slave):
     """Generic adapter from a :class:`~observers.block.Block` to ``pythonfmu``."""
 
     definition_file: ClassVar[str] = ""

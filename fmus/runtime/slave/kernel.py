@@ -1,0 +1,187 @@
+"""The compiled step kernel's image of the slave: the steps of a linear block in C, without entering Python (issue 39).
+
+An FMU whose block has an :class:`~observers.affine_form.AffineForm` (continuous LTI plant, Luenberger observer,
+state feedback, integral state feedback) is stepped by the native bridge in C (``fmus/native/kernel.h``):
+``fmi2DoStep``, ``fmi2SetReal`` of inputs, ``fmi2SetRealInputDerivatives``, ``fmi2GetReal`` of inputs, outputs
+and parameters, and the native one-call step.  Python keeps everything else -- instantiation and its checks,
+the parameters, FMU states, logging, and every step the kernel cannot vouch for (a bad input, a value beyond
+the bound: the Python path refuses it with its message).
+
+The protocol (the bridge drives it):
+
+* :meth:`Kernels.kernel_load` -- after initialization, the *image*: one float64 vector ``memory`` holding the
+  time, the state, the inputs with their record and derivatives, the matrices, the values of the parameters;
+  and an int64 ``layout`` saying where each is.  The bridge writes into ``memory`` in place.  ``None``: not
+  now (not initialised, a bad input remembered, pending derivatives); ``False``: never for this instance
+  (no affine form, a system file's convergence flag).  ``obsfmu build --kernels python`` (the record's
+  ``kernels=python``) or ``OBSFMU_KERNELS=python`` in the environment keep the bridge from asking.
+* :meth:`Kernels.kernel_store` -- before any other call reaches Python: the image written back into the
+  slave and its block, so Python continues exactly where the kernel stopped (FMU states serialise as
+  before, in one format: a state of one path restores in the other).
+* :meth:`Kernels.kernel_matrices` -- ``Phi, G0, G1`` for a new step size (the block's own propagator).
+
+Equal results: the kernel evaluates the block's own matrices; the Python path and the kernel agree to round-off
+(tests/fmus/native/test_kernels.py: 1e-12 relative on the linear scenarios).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pythonfmu import Integer, Real
+
+from obsfmu.observers.affine_form import AffineForm
+
+from .common import EXTRAPOLATE, INTERPOLATE
+
+__all__ = ["Kernels", "KERNEL_ABI", "HEADER"]
+
+#: the version of the image's layout, checked by the bridge (= OBSFMU_KERNEL_ABI in fmus/native/kernel.h)
+KERNEL_ABI = 1
+#: the step sizes whose matrices the image keeps (= OBSFMU_KERNEL_SLOTS): an importer stepping t_(k+1) - t_k
+#: (fmusim) alternates between a few sizes one ulp apart
+SLOTS = 8
+#: the fields of the layout's header, in order (kernel.h reads them by these positions)
+HEADER = ("abi", "n", "m", "columns", "q", "ports", "variables", "time", "x", "w", "d", "previous",
+          "previous_time", "moving", "out", "C", "D", "e", "Phi", "G0", "G1", "h", "bound", "values", "scratch",
+          "size")
+#: classes of a value reference in the layout's table (after the header and the ports)
+PYTHON, INPUT, OUTPUT, VALUE, INTEGER = 0, 1, 2, 3, 4
+
+assert EXTRAPOLATE == 1 and INTERPOLATE == 2          # the modes as kernel.h reads them
+
+
+class Kernels:
+    """The kernel image of :class:`~fmus.runtime.slave.BlockSlave` (module docstring)."""
+
+    _kernel: tuple | None = None      # (form, offsets, memory) of the image the bridge holds
+
+    def kernel_load(self):
+        """``(layout, memory)`` for the bridge, ``None`` (not now) or ``False`` (never: Python steps)."""
+        self._kernel = None
+        form = self._kernel_form()
+        if form is None:
+            return False
+        if not self._stepping or self._bad or self._derivatives or self._block is None:
+            return None
+        block = self._block
+        if set(block.get_state()) != ({form.state} if form.state else set()):   # the form must be the whole state
+            return False
+        return self._image(form, block)
+
+    def _kernel_form(self) -> AffineForm | None:
+        """The block's affine form, or None when this FMU steps in Python."""
+        if self.definition.kernels == "python" or self._step_rate:   # asked for; or a system file's convergence
+            return None                                                  # flag, which the Python step vouches for
+        block = self._try_block()
+        form = getattr(block, "affine_form", None)
+        return form() if form is not None else None
+
+    def _image(self, form: AffineForm, block) -> tuple[np.ndarray, np.ndarray]:
+        n, m = form.size, self._input_flat.size
+        columns = m + form.constant
+        ports = self.definition.inputs
+        q = sum(p.size for p in self.definition.outputs)
+        sizes = {"time": 1, "x": n, "w": m, "d": m, "previous": m, "previous_time": len(ports), "moving": len(ports),
+                 "out": q, "C": q * n, "D": q * m, "e": q, "Phi": SLOTS * n * n, "G0": SLOTS * n * columns,
+                 "G1": SLOTS * n * columns, "h": SLOTS,
+                 "bound": 1, "values": len(self.vars), "scratch": n + 2 * columns + m + q}
+        offsets, total = {}, 0
+        for name, size in sizes.items():
+            offsets[name] = total
+            total += size
+        memory = np.zeros(total)
+
+        def put(name, values):
+            memory[offsets[name]:offsets[name] + sizes[name]] = np.ravel(values)
+
+        put("time", self._time)
+        if n:
+            put("x", getattr(block, form.state))
+        put("w", self._input_flat)
+        record = self._last_inputs
+        put("previous", np.concatenate([record[p.name][0] for p in ports]) if ports else [])
+        put("previous_time", [record[p.name][1] for p in ports])
+        C, D, e = self._output_matrices(form, n, m)
+        put("C", C)
+        put("D", D)
+        put("e", e)
+        put("h", np.nan)                                      # no matrices yet: the first step asks for them
+        put("bound", block.magnitude_bound)
+        layout = [KERNEL_ABI, n, m, columns, q, len(ports), len(self.vars)] + [offsets[f] for f in HEADER[7:-1]] + \
+            [total]
+        starts = np.cumsum([0] + [p.size for p in ports]).tolist()
+        layout += starts + [int(self._modes[p.name][0]) for p in ports]
+        layout += self._variable_table(memory, offsets["values"])
+        self._kernel = (form, offsets, memory)
+        return np.array(layout, dtype=np.int64), memory
+
+    def _output_matrices(self, form: AffineForm, n: int, m: int):
+        """``C, D, e`` of every output element in declaration order, ``D`` over the FMU's flat inputs."""
+        columns = {}                                          # block input port -> its columns in D of the form
+        start = 0
+        for port in form.inputs:
+            columns[port] = slice(start, start + self._input_slices[port].stop - self._input_slices[port].start)
+            start = columns[port].stop
+        Cs, Ds, es = [], [], []
+        for port in self.definition.outputs:
+            C, D, e = form.outputs[port.name]
+            flat = np.zeros((len(e), m))
+            for name, where in columns.items():
+                flat[:, self._input_slices[name]] = D[:, where]
+            Cs.append(C.reshape(len(e), n))
+            Ds.append(flat)
+            es.append(e)
+        return np.vstack(Cs), np.vstack(Ds), np.concatenate(es)
+
+    def _variable_table(self, memory: np.ndarray, values: int) -> list[int]:
+        """Per value reference ``0..V-1``: its class and index (input element, output element, or its value
+        kept at ``memory[values + vr]``: the Real and Integer parameters, fixed while stepping)."""
+        inputs = {vr: self._input_slices[port].start + index for vr, (port, index, _) in self._input_elements.items()}
+        table = []
+        for vr in range(len(self.vars)):
+            variable = self.vars.get(vr)
+            if vr in inputs:
+                table += [INPUT, inputs[vr]]
+            elif vr in self._output_offsets:
+                table += [OUTPUT, self._output_offsets[vr]]
+            elif isinstance(variable, (Real, Integer)) and variable.getter is not None:
+                memory[values + vr] = variable.getter()
+                table += [VALUE if isinstance(variable, Real) else INTEGER, vr]
+            else:
+                table += [PYTHON, 0]
+        return table
+
+    def kernel_matrices(self, h: float, slot: int) -> bool:
+        """``Phi, G0, G1`` of step ``h`` into the image's ``slot``; False when the block cannot step ``h`` (the
+        Python path then refuses the step, naming why)."""
+        form, offsets, memory = self._kernel
+        if not 0 <= slot < SLOTS:
+            return False
+        try:
+            Phi, G0, G1 = form.step(h)
+        except (ValueError, ArithmeticError, np.linalg.LinAlgError):
+            return False
+        for name, matrix in (("Phi", Phi), ("G0", G0), ("G1", G1)):
+            start = offsets[name] + slot * matrix.size
+            memory[start:start + matrix.size] = matrix.ravel()
+        memory[offsets["h"] + slot] = h
+        return True
+
+    def kernel_store(self) -> None:
+        """The image back into the slave and its block (the kernel stepped or took inputs since it was loaded)."""
+        form, offsets, memory = self._kernel
+        n, m = form.size, self._input_flat.size
+        self._time = float(memory[offsets["time"]])
+        if n:
+            setattr(self._block, form.state, memory[offsets["x"]:offsets["x"] + n].copy())
+        self._input_flat[:] = memory[offsets["w"]:offsets["w"] + m]
+        previous = memory[offsets["previous"]:offsets["previous"] + m]
+        derivatives, record = {}, {}
+        for k, port in enumerate(self.definition.inputs):
+            where = self._input_slices[port.name]
+            record[port.name] = (previous[where].copy(), float(memory[offsets["previous_time"] + k]))
+            if memory[offsets["moving"] + k]:
+                store = derivatives[port.name] = self._derivative_store[port.name]
+                store[:] = memory[offsets["d"]:offsets["d"] + m][where]
+        self._last_inputs, self._derivatives = record, derivatives
+        self._outputs_cache, self._snapshot = None, None

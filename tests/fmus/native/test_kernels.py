@@ -1,0 +1,145 @@
+"""Compiled step kernels (issue 39): linear blocks step in C inside the FMU, with the Python path's results.
+
+The same FMUs run twice in one process, with their kernel and with ``OBSFMU_KERNELS=python`` (read by the bridge
+at instantiation): every column must agree to 1e-12 of its largest value; FMU states move between the two paths;
+what the kernel cannot vouch for (a NaN input, a state beyond the bound) is refused by the Python path with its
+message, and the kernel takes the next good step again.
+"""
+
+from __future__ import annotations
+
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import obsfmu
+from obsfmu.fmus.cli import main as cli
+
+from faults_support import DISCARD, ERROR, OK, Probe
+
+ROOT = Path(__file__).resolve().parents[3]
+SHIP = ROOT / "fmus" / "scenarios" / "ship" / "system.toml"
+
+#: kernel vs Python path, relative to each column's largest magnitude (round-off of a different summation order)
+AGREEMENT = 1e-12
+
+
+def both_paths(monkeypatch, run):
+    """``run()`` with the kernels, then with ``OBSFMU_KERNELS=python``."""
+    monkeypatch.delenv("OBSFMU_KERNELS", raising=False)
+    fast = run()
+    monkeypatch.setenv("OBSFMU_KERNELS", "python")
+    slow = run()
+    monkeypatch.delenv("OBSFMU_KERNELS")
+    return fast, slow
+
+
+def assert_same_columns(fast, slow, columns):
+    for column in columns:
+        a, b = np.asarray(fast[column], dtype=float), np.asarray(slow[column], dtype=float)
+        scale = max(float(np.max(np.abs(b))), 1e-300)
+        assert np.max(np.abs(a - b)) <= AGREEMENT * scale, (column, np.max(np.abs(a - b)) / scale)
+
+
+@pytest.mark.parametrize("order, coupling", [("gauss-seidel", "linear"), ("jacobi", "linear"), ("gauss-seidel", "hold")])
+def test_ship_scenario_equals_python_path(monkeypatch, build_dir, order, coupling):
+    """Paper 002 through the master (input derivatives, interpolation modes, the one-call step): plant, observer
+    and state feedback in C equal the Python path state for state (0.2 s, 10 000 steps)."""
+    fast, slow = both_paths(monkeypatch, lambda: obsfmu.run("ship", stop_time=0.2, order=order, coupling=coupling,
+                                                            build_dir=build_dir))
+    columns = [c for c in fast.columns if c != "time"]
+    assert {"plant.x[1]", "observer.x_hat[2]", "controller.u"} <= set(columns)
+    assert_same_columns(fast, slow, columns)
+
+
+@pytest.mark.parametrize("example, stop", [("dcmotor", 0.5), ("chirp_noisy", 1.0), ("pendulum", 1.0)])
+def test_examples_with_linear_blocks_equal_python_path(monkeypatch, build_dir, example, stop):
+    """The examples whose LTI plants, observers and state feedback get a kernel, next to blocks without one (ramps,
+    chirp, noise, an expression plant): the same numbers on both paths."""
+    path = ROOT / "examples" / f"{example}.toml"
+    fast, slow = both_paths(monkeypatch, lambda: obsfmu.run(path, stop_time=stop, build_dir=build_dir))
+    assert_same_columns(fast, slow, [c for c in fast.columns if c != "time"])
+
+
+# ------------------------------------------------------------------ one FMU, call by call (fmpy's FMU2Slave)
+
+def probe(fmu, name, kernels=None, monkeypatch=None):
+    """An initialised instance of ``fmu`` on the kernel path (``kernels`` None) or the Python path."""
+    if kernels:
+        monkeypatch.setenv("OBSFMU_KERNELS", kernels)
+    else:
+        monkeypatch.delenv("OBSFMU_KERNELS", raising=False)
+    return Probe(fmu, name)
+
+
+def drive(instance, first, count, step=1e-3):
+    for k in range(first, first + count):
+        instance.drive_inputs(k, step)
+        assert instance.step(step) == OK, instance.messages()
+
+
+@pytest.mark.parametrize("model", ["ship_plant", "ship_observer", "ship_controller"])
+def test_fmu_state_moves_between_paths(monkeypatch, ship_fmus, model):
+    """A state serialized on one path restores on the other (one format): 100 steps in C, 100 in Python, 100 in C
+    again equal 300 steps in C, inputs and input derivatives set every step."""
+    fmu = ship_fmus[model]
+    reference = probe(fmu, "reference", monkeypatch=monkeypatch)
+    drive(reference, 0, 300)
+    path = probe(fmu, "first", monkeypatch=monkeypatch)
+    drive(path, 0, 100)
+    for first, kernels in ((100, "python"), (200, None)):
+        state = path.slave.serializeFMUstate(path.slave.getFMUstate())
+        time = path.t
+        path.free()
+        path = probe(fmu, f"from{first}", kernels, monkeypatch)
+        path.slave.setFMUstate(path.slave.deSerializeFMUstate(state))
+        path.t = time
+        drive(path, first, 100)
+    np.testing.assert_allclose(path.outputs(), reference.outputs(), rtol=AGREEMENT, atol=0)
+    path.free()
+    reference.free()
+
+
+def test_refusals_come_from_the_python_path(monkeypatch, ship_fmus):
+    """A NaN input is refused in the Python path's words -- the kernel does not take it -- with the state kept;
+    restored to before, good inputs step in C again; parameters and interpolation modes read while stepping are their values."""
+    instance = probe(ship_fmus["ship_plant"], "refusals", monkeypatch=monkeypatch)
+    drive(instance, 0, 10)
+    before, state = instance.outputs(), instance.slave.getFMUstate()
+    assert instance.set("u", float("nan")) == OK                 # remembered; the step refuses it
+    assert instance.step(1e-3) == DISCARD
+    assert "input u = nan is not finite" in instance.messages()
+    np.testing.assert_array_equal(instance.outputs(), before)
+    instance.slave.setFMUstate(state)                            # out of stepFailed (FMI 2.0), as a master does
+    instance.slave.freeFMUstate(state)
+    drive(instance, 10, 5)
+    assert not np.array_equal(instance.outputs(), before)
+    assert instance.get(["A[2,1]", "x0[2]"]) == [-2.0, 0.2]
+    assert instance.slave.getInteger([instance.vr("u_interpolation")]) == [0]
+    assert instance.set("A[1,1]", 5.0) == ERROR                  # fixed after initialization: refused in Python
+    assert "parameters are fixed after initialization" in instance.messages()
+    instance.free()
+
+
+def test_step_beyond_the_bound_is_refused_naming_the_state(monkeypatch, ship_fmus):
+    """The unstable ship plant (eig(A) = {1, 2}) stepped until its state would pass 1e100 (t ~ 115 s): the kernel
+    does not take that step, the Python path refuses it naming the state, and the outputs stay as they were."""
+    instance = probe(ship_fmus["ship_plant"], "bound", monkeypatch=monkeypatch)
+    status = OK
+    while status == OK and instance.t < 200:
+        status = instance.step(1.0)
+    assert status == DISCARD and 110 < instance.t < 120, (status, instance.t)
+    assert "exceeds the bound 1e+100" in instance.messages()
+    assert np.all(np.isfinite(instance.outputs()))
+    instance.free()
+
+
+def test_kernels_python_is_recorded_in_the_fmu(tmp_path, ship_fmus):
+    """``obsfmu build --kernels python``: the FMU's record says so (its bridge then never takes an image)."""
+    code = cli.main(["build", "--config", str(SHIP), "--out", str(tmp_path), "--kernels", "python"])
+    assert code == 0
+    fmu = tmp_path / "ship_plant.fmu"
+    assert "kernels=python" in zipfile.ZipFile(fmu).read("resources/obsfmu_native.txt").decode()
+    assert "kernels" not in zipfile.ZipFile(ship_fmus["ship_plant"]).read("resources/obsfmu_native.txt").decode()
