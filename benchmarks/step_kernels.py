@@ -11,7 +11,9 @@ and in a bare C host (this file: ``fmi2DoStep`` and ``fmi2GetReal`` of the outpu
 the FMU itself costs.
 
 * the ship FMUs (paper 002: LTI plant, Luenberger observer, state feedback) with their kernel and with
-  ``--kernels python``; ``ltv_ls_observer`` (paper 001), which has no kernel yet.
+  ``--kernels python``; an ``expression`` plant, the forced Duffing oscillator of benchmarks/expression_plant.py
+  (RK4 sub-steps of at most 1e-3 s under error control, its expressions compiled to C), against VanDerPol;
+  ``ltv_ls_observer`` (paper 001), which has no kernel yet.
 
 And ``obsfmu run ship`` (the master, 50 000 steps of three FMUs) with and without kernels
 (``OBSFMU_KERNELS=python``), as wall time of the process.
@@ -37,13 +39,16 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 SHIP = ROOT / "fmus" / "scenarios" / "ship" / "system.toml"
 HOST = {"linux": "linux64", "darwin": "darwin64"}.get(sys.platform, "linux64")
+#: the forced Duffing oscillator of benchmarks/expression_plant.py
+DUFFING = ["x[2]", "-delta * x[2] - alpha * x[1] - beta * x[1] ** 3 + gain * u[1]"]
+DUFFING_PARAMETERS = {"delta": 0.3, "alpha": -1.0, "beta": 1.0, "gain": 0.8}
 
 
 def find_fmusim(given: str | None) -> str:
     candidates = [given] if given else sorted(glob.glob(os.path.expanduser("~/.cache/obsfmu/importers/*/fmusim")))
     candidates += [shutil.which("fmusim") or ""]
     for candidate in candidates:
-        if candidate and subprocess.run([candidate, "--help"], capture_output=True).returncode in (0, 1):
+        if candidate and subprocess.run([candidate, "--help"], capture_output=True, check=False).returncode in (0, 1):
             return candidate
     sys.exit("fmusim not found: pass --fmusim, or build it (pytest tests/fmus/native/test_third_party.py)")
 
@@ -160,6 +165,13 @@ def main() -> None:
         subprocess.run(obsfmu + ["build", "--config", str(SHIP), "--out", str(work / "python"), "--kernels",
                                  "python"], check=True, capture_output=True)
         subprocess.run(obsfmu + ["build", "--out", str(work / "all")], check=True, capture_output=True)
+        from obsfmu.fmus.builder import build_fmu
+        from obsfmu.fmus.runtime.kinds.expression import expression_plant_definition
+        for kernels in ("c", "python"):
+            duffing = expression_plant_definition("duffing", DUFFING, ["x[1]"], [1.0, 0.0], inputs=1,
+                                                  parameters=DUFFING_PARAMETERS)
+            duffing.kernels = kernels
+            build_fmu(duffing, work / kernels)
         host = bare_host(work)
         rows = []
 
@@ -174,6 +186,9 @@ def main() -> None:
             for kernels in ("c", "python"):
                 # h = 1e-5: the unstable ship (eig(A) = {1, 2}) stays O(1) over the run; CSV numbers of similar size
                 measure(f"`{model}`, kernels {kernels}", work / kernels / f"{model}.fmu", 1e-5, args.steps)
+        for kernels in ("c", "python"):
+            measure(f"`duffing` expression plant, kernels {kernels}", work / kernels / "duffing.fmu", 1e-3,
+                    args.steps if kernels == "c" else args.ltv_steps)
         measure("`ltv_ls_observer` (Python: no kernel yet)", work / "all" / "ltv_ls_observer.fmu", 1e-3,
                 args.ltv_steps)
         base = rows[0] if args.reference_fmus else None

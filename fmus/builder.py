@@ -37,6 +37,7 @@ from .cli.stopping import signals_held
 from .output import file_mode
 from .runtime.definition import FmuDefinition, valid_identifier
 from .runtime.slave import versions
+from .runtime.slave.kernel import kernel_source
 
 __all__ = ["build_fmu", "is_current", "why_not_current", "record_path", "source_hash", "platforms_of", "PROJECT_ROOT", "BUNDLED_PACKAGES",
            "BUNDLED_CODE"]
@@ -187,6 +188,9 @@ def build_fmu(definition: FmuDefinition, out_dir: Path | str, extra_modules=(), 
         definition.kind_module = module_of(definition.kind)
     model = definition.model_name
     binaries = {name: _binaries(name, fmi_version) for name in platforms}  # fail early: nothing half-built
+    kernel = kernel_source(definition)      # the compiled expressions of an expression plant (issue 39)
+    kernels = {name: (f"{folder}/{definition.model_name}_kernel{native.target(name).suffix}",
+                      native.kernel_library(kernel, name)) for name, (folder, _, _) in binaries.items()} if kernel else {}
     package, bundled = _bundle(extra_modules)
     host = native.platform_folder()
     python = native.python_record() if host in platforms else {}
@@ -211,7 +215,9 @@ def build_fmu(definition: FmuDefinition, out_dir: Path | str, extra_modules=(), 
             record = _record(guid=guid, package=package, slave_module=f"_slave_{model}", slave_class=model,
                              **({"kernels": "python"} if definition.kernels == "python" else {}),
                              **({"bridge": bridges[host], **python} if host in platforms else {}),
-                             **{f"{name}.bridge": bridges[name] for name in platforms if name != host})
+                             **{f"{name}.bridge": bridges[name] for name in platforms if name != host},
+                             **{("" if name == host else f"{name}.") + "kernel_library": where
+                                for name, (where, _) in kernels.items()})
             built_with = {"built_with": versions.running()}
             if "win64" in platforms:
                 from .native.windows import NUMPY
@@ -248,6 +254,8 @@ def build_fmu(definition: FmuDefinition, out_dir: Path | str, extra_modules=(), 
                     for platform, (folder, loader, bridge) in binaries.items():
                         archive.write(loader, f"{folder}/{model}{loader.suffix}")
                         archive.write(bridge, bridges[platform])
+                    for where, library in kernels.values():
+                        archive.write(library, where)
                 target = out_dir / f"{model}.fmu"
                 os.replace(partial, target)
             finally:

@@ -9,7 +9,7 @@ from typing import Mapping
 
 import numpy as np
 
-from .affine_form import AffineForm, output_map
+from .kernel_forms import AffineForm, output_map
 from .block import Block, Segment
 from .checks import ParameterError, as_matrix, as_vector
 
@@ -39,7 +39,7 @@ class StateFeedback(Block):
     def advance(self, t: float, h: float, inputs: Mapping[str, Segment]) -> None:
         """Nothing to integrate: the block is static."""
 
-    def affine_form(self) -> AffineForm:
+    def kernel_form(self) -> AffineForm:
         """The compiled kernel's form: no state, ``u = [-K, I] [x_hat; r]``."""
         m, n = self.K.shape
         return AffineForm("", 0, ("x_hat", "r"), False, None,
@@ -76,7 +76,7 @@ class IntegralStateFeedback(Block):
         y, r = inputs["y"], inputs["r"]
         self.z = self.z + h * (y.start - r.start) + 0.5 * h * h * (y.slope - r.slope)
 
-    def affine_form(self) -> AffineForm:
+    def kernel_form(self) -> AffineForm:
         """The compiled kernel's form: ``z(t + h) = z + h [0, I, -I] w0 + h^2/2 [0, I, -I] dw`` over
         ``w = [x_hat; y; r]``, ``u = -K_i z - [K, 0, 0] w``."""
         m, n = self.K.shape

@@ -27,7 +27,7 @@ from typing import Mapping
 
 import numpy as np
 
-from .affine_form import AffineForm, output_map
+from .kernel_forms import AffineForm, output_map
 from .block import Segment
 from .checks import ParameterError, as_matrix, as_vector, require_hurwitz
 from .integrators import DEFAULT_SUBSTEP_BUDGET, LinearPropagator, require_budget
@@ -99,7 +99,7 @@ class LuenbergerObserver(SampledBlock):
         slope = np.concatenate([u.slope, y.slope] + ([[0.0]] if self._affine else []))
         self.x_hat = self._propagator.step(self.x_hat, h, start, slope)
 
-    def affine_form(self) -> AffineForm | None:
+    def kernel_form(self) -> AffineForm | None:
         """The compiled kernel's form of this observer (continuous only; the discrete predictor steps in Python):
         ``w = [u; y]`` (and 1 with the offsets), the outputs ``x_hat = x`` and ``y_hat = C x + D u + e``."""
         if self._propagator is None:

@@ -29,6 +29,7 @@ from typing import Mapping
 import numpy as np
 
 from obsfmu.observers.block import Segment
+from obsfmu.observers.kernel_forms import ExpressionForm
 from obsfmu.observers.checks import ParameterError, as_vector, require_positive
 from obsfmu.observers.expressions import VectorFunction
 from obsfmu.observers.integrators import DEFAULT_SUBSTEP_BUDGET, require_budget, rk4_controlled, substep_count
@@ -103,6 +104,14 @@ class ExpressionPlant(SampledBlock):
             elapsed = s - t
             return f(s, x.tolist(), [a + elapsed * b for a, b in zip(start, slope)], p)
         return rk4_controlled(rhs, float(t), self.x, h, count, self.rtol, self.atol, self.substep_budget)
+
+    def kernel_form(self) -> ExpressionForm | None:
+        """The compiled kernel's form of a continuous plant (its expressions compiled to C when the FMU is built);
+        a discrete one steps in Python."""
+        if self.sample_time is not None:
+            return None
+        return ExpressionForm("x", self.f.size, tuple(self.input_sizes), self.p,
+                              (self.max_substep, self.rtol, self.atol, float(self.substep_budget)))
 
     def sample_period(self) -> float:
         return self.sample_time

@@ -13,7 +13,7 @@ from typing import Mapping
 
 import numpy as np
 
-from obsfmu.observers.affine_form import AffineForm, output_map
+from obsfmu.observers.kernel_forms import AffineForm, output_map
 from obsfmu.observers.block import Segment
 from obsfmu.observers.checks import as_vector
 from obsfmu.observers.integrators import DEFAULT_SUBSTEP_BUDGET, LinearPropagator, require_budget
@@ -57,7 +57,7 @@ class LTIPlant(SampledBlock):
             return
         super().advance(t, h, inputs)
 
-    def affine_form(self) -> AffineForm | None:
+    def kernel_form(self) -> AffineForm | None:
         """The compiled kernel's form of this plant (continuous only; a discrete one steps in Python)."""
         if self._propagator is None:
             return None

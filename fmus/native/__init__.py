@@ -31,7 +31,7 @@ from pathlib import Path
 from ..caches import cache_root, writable
 
 __all__ = ["NativeBuildError", "Target", "TARGETS", "target", "host", "platform_folder", "fmi_headers", "compiled",
-           "loader_library", "bridge_library", "bridge_name", "python_record", "identity", "BOOTSTRAP", "OVERRIDE",
+           "loader_library", "bridge_library", "kernel_library", "bridge_name", "python_record", "identity", "BOOTSTRAP", "OVERRIDE",
            "STARTS"]
 
 HERE = Path(__file__).parent
@@ -78,14 +78,16 @@ class Target:
 
 #: MinGW-w64's C compiler (the win64 binaries; tests run them under wine)
 MINGW = "x86_64-w64-mingw32-gcc"
-_UNIX_SHARED = ("-shared", "-fPIC", "-O2", "-Wall", "-fvisibility=hidden")
-# snprintf may truncate over-long paths on purpose (they then do not exist): no warning for that
+_UNIX_SHARED = ("-shared", "-fPIC", "-O2", "-Wall", "-fvisibility=hidden", "-ffp-contract=off")
+# -ffp-contract=off: no fused multiply-add, so the step kernels (kernel.h, the compiled expressions) do numpy's and
+# Python's operations one by one, to the bit.  snprintf may truncate over-long paths on purpose (they then do not
+# exist): no warning for that
 TARGETS = {
     "linux64": Target("linux64", "x86_64-linux", ".so", _UNIX_SHARED,
                       ("-pthread", "-ldl", "-Wno-format-truncation", "-Wl,-Bsymbolic")),
     "darwin64": Target("darwin64", "x86_64-darwin", ".dylib", _UNIX_SHARED, ("-pthread", "-Wno-format-truncation")),
     # static libgcc and winpthreads: the DLLs need nothing but KERNEL32 and msvcrt (and the bridge python3X.dll)
-    "win64": Target("win64", "x86_64-windows", ".dll", ("-shared", "-O2", "-Wall", "-static-libgcc"),
+    "win64": Target("win64", "x86_64-windows", ".dll", ("-shared", "-O2", "-Wall", "-static-libgcc", "-ffp-contract=off"),
                     ("-pthread", "-static", "-Wno-format-truncation")),
 }
 
@@ -179,6 +181,20 @@ def bridge_library(platform: str | None = None) -> Path:
                                f"e.g. python{_version()}-dev)")
     flags = [f"-I{include}"] + (["-undefined", "dynamic_lookup"] if sys.platform == "darwin" else [])
     return compiled(f"obsfmu_bridge_cp{_version().replace('.', '')}", BRIDGE, flags, include + sys.version)
+
+
+def kernel_library(source: str, platform: str | None = None) -> Path:
+    """An FMU's own kernel library -- ``source``, the C of its compiled expressions
+    (:func:`fmus.runtime.slave.kernel.kernel_source`) -- for ``platform`` (default: this machine's), compiled once
+    per source (cached)."""
+    chosen = target(platform) if platform else host()
+    folder = writable(cache_dir(), "XDG_CACHE_HOME")
+    path = folder / f"obsfmu_kernel-{hashlib.sha256(source.encode()).hexdigest()[:16]}.c"
+    if not path.is_file():
+        with tempfile.NamedTemporaryFile("w", dir=folder, suffix=".partial", delete=False) as file:
+            file.write(source)
+        os.replace(file.name, path)
+    return compiled("obsfmu_kernel", path, [] if chosen.name == "win64" else ["-lm"], "", chosen)
 
 
 def bridge_name(platform: str | None = None) -> str:

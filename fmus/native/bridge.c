@@ -44,6 +44,11 @@
 
 #include "obsfmu_native.h"
 #include "kernel.h"
+#ifdef _WIN32
+#include "win32_dlfcn.h" /* the FMU's kernel library: dlopen & co. over LoadLibraryExW */
+#else
+#include <dlfcn.h>
+#endif
 
 #ifdef _WIN32
 #define OBSFMU_BRIDGE_EXPORT __declspec(dllexport) /* win64: linked to python3X.dll by its name */
@@ -70,9 +75,12 @@ typedef struct {
     int wanted;         /* ask the slave for an image (it said "not now"; a call has reached Python since) */
     int loaded;         /* the image is bound: inputs, steps and outputs run in C */
     int dirty;          /* the kernel changed the image since it was loaded */
+    int announced;      /* the first image was logged (logAll, with logging on) */
     PyObject *memory, *layout;
     Py_buffer views[2]; /* of memory and layout */
     KernelImage image;
+    char *path;         /* the FMU's kernel library (record: kernel_library), NULL: none */
+    void *library;      /* loaded on first use: the compiled expressions of an expression plant */
 } Kernel;
 
 typedef struct {
@@ -404,6 +412,19 @@ static void kernel_release(Component *c)
 }
 
 /* 1 when the image is bound (taken now if the slave hands one); 0: this call goes to Python. */
+/* The compiled expressions of the image (KK_EXPRESSION) from the FMU's kernel library; 0 when found. */
+static int kernel_functions(Component *c)
+{
+    Kernel *k = &c->kernel;
+    if (k->image.kind != KK_EXPRESSION) return 0;
+    if (k->library == NULL && k->path != NULL) k->library = dlopen(k->path, RTLD_NOW | RTLD_LOCAL);
+    if (k->library != NULL) {
+        k->image.f = (KernelFunction *)dlsym(k->library, OBSFMU_KERNEL_F);
+        k->image.g = (KernelFunction *)dlsym(k->library, OBSFMU_KERNEL_G);
+    }
+    return k->image.f != NULL && k->image.g != NULL ? 0 : -1;
+}
+
 static int kernel_ready(Component *c)
 {
     Kernel *k = &c->kernel;
@@ -430,8 +451,15 @@ static int kernel_ready(Component *c)
         PyErr_Clear();
         if (bound == 2 && k->views[0].itemsize == sizeof(double) && k->views[1].itemsize == sizeof(int64_t) &&
             kernel_bind(&k->image, k->views[0].buf, (size_t)k->views[0].len / sizeof(double), k->views[1].buf,
-                        (size_t)k->views[1].len / sizeof(int64_t)) == 0) {
+                        (size_t)k->views[1].len / sizeof(int64_t)) == 0 && kernel_functions(c) == 0) {
             k->loaded = 1;
+            if (!k->announced) {
+                k->announced = 1;
+                log_message(c, fmi2OK, "logAll", k->image.kind == KK_AFFINE
+                            ? "steps run in the compiled kernel (linear block; OBSFMU_KERNELS=python: in Python)"
+                            : "steps run in the compiled kernel (expressions compiled to C; OBSFMU_KERNELS=python: "
+                              "in Python)");
+            }
         } else {
             if (bound == 2) {
                 PyBuffer_Release(&k->views[0]);
@@ -439,8 +467,8 @@ static int kernel_ready(Component *c)
             }
             Py_CLEAR(k->memory);
             Py_CLEAR(k->layout);
-            log_message(c, fmi2Warning, "logStatusWarning", "the step kernel's image does not fit this bridge: "
-                        "the FMU steps in Python (rebuild it with this obsfmu)");
+            log_message(c, fmi2Warning, "logStatusWarning", "the step kernel's image does not fit this bridge, or "
+                        "its kernel library is missing: the FMU steps in Python (rebuild it with this obsfmu)");
             k->never = 1;
         }
     }
@@ -470,6 +498,8 @@ static void free_component(Component *c)
 {
     if (c == NULL) return;
     kernel_drop(&c->kernel);
+    if (c->kernel.library != NULL) dlclose(c->kernel.library);
+    free(c->kernel.path);
     drop_batch(&c->batch);
     release_instance(c->instance);
     Py_XDECREF(c->refusal);
@@ -565,6 +595,12 @@ static fmi2Component instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2
     const char *wish = getenv("OBSFMU_KERNELS");
     c->kernel.off = (wish && strcmp(wish, "python") == 0) ||
                     (record && strcmp(obsfmu_record_value(record, "kernels", kernels, sizeof kernels), "python") == 0);
+    char library[512];
+    if (record && c->resources && obsfmu_record_value(record, "kernel_library", library, sizeof library)[0]) {
+        size_t size = strlen(c->resources) + strlen(library) + 8;   /* <resources>/../<binaries/.../x_kernel.so> */
+        c->kernel.path = malloc(size);
+        if (c->kernel.path) snprintf(c->kernel.path, size, "%s/../%s", c->resources, library);
+    }
     if (c->name == NULL || record == NULL) {
         free(record);
         free_component(c);

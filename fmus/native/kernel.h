@@ -1,75 +1,125 @@
 /*
- * The compiled step kernel of a linear block (issue 39): its steps, inputs and outputs in C, without Python.
+ * The compiled step kernels (issue 39): the steps, inputs and outputs of a block in C, without Python.
  *
  * The slave hands the bridge an IMAGE of itself (fmus/runtime/slave/kernel.py): one vector of doubles (the
- * time, the state x, the inputs w with their record and derivatives, the matrices, the parameter values) and a
- * layout of int64 saying where each is.  The block is affine (observers/affine_form.py):
+ * time, the state x, the inputs w with their record and derivatives, the block's constants, the parameter
+ * values) and a layout of int64 saying where each is.  Two kinds of block have a kernel:
  *
- *     x(t + h) = Phi(h) x + G0(h) w0 + G1(h) dw          (inputs linear over the step: w0 + s dw)
- *     out      = C x + D w + e                            (every output element, in declaration order)
+ *   KK_AFFINE (observers/kernel_forms.py: LTI plant, Luenberger observer, state feedback), exact over a step
+ *     whose inputs are linear, w0 + s dw:
+ *         x(t + h) = Phi(h) x + G0(h) w0 + G1(h) dw          out = C x + D w + e
+ *   KK_EXPRESSION (plants/expression.py: a continuous plant of expressions), x' = f(t, x, u, p), y = g(t, x, u, p)
+ *     by observers.integrators.rk4_controlled, operation for operation; f and g are the FMU's own compiled
+ *     expressions (observers/expressions_c.py), found by the bridge in the FMU's kernel library;
+ *     out = [g(t, x, w, p); x].
  *
- * with the input segments built as the Python slave builds them (fmus/runtime/slave/step.py): a port given a
+ * The input segments are built as the Python slave builds them (fmus/runtime/slave/step.py): a port given a
  * derivative follows it; otherwise its <port>_interpolation mode: hold, extrapolate from the previous
  * communication point, interpolate from it (the value set belongs to the step end).  A constant column 1
- * follows the inputs when the layout says so (columns = m + 1).
+ * follows the inputs of an affine block when the layout says so (columns = m + 1).
  *
  * Everything here is plain C on the image; the bridge (bridge.c) loads and stores it.  A call the kernel cannot
  * vouch for returns 0 having changed nothing, and the bridge hands it to the Python path, which carries it out
  * or refuses it with its message: a value that is not finite or beyond the bound, a step size that is not
- * positive, a value reference of another kind.
+ * positive, a step beyond the sub-step budget, a value reference of another kind.
  */
 #ifndef OBSFMU_KERNEL_H
 #define OBSFMU_KERNEL_H
 
+#include <math.h>
 #include <stdint.h>
 #include <string.h>
 
-#define OBSFMU_KERNEL_ABI 1 /* = fmus.runtime.slave.kernel.KERNEL_ABI */
+#define OBSFMU_KERNEL_ABI 2 /* = fmus.runtime.slave.kernel.KERNEL_ABI */
 /* The matrices of this many step sizes are kept (= fmus.runtime.slave.kernel.SLOTS): an importer that steps
  * t_(k+1) - t_k, like fmusim, gives a few step sizes one ulp apart, alternating */
 #define OBSFMU_KERNEL_SLOTS 8
+/* The exported functions of an FMU's kernel library (= fmus.runtime.slave.kernel.SYMBOLS) */
+#define OBSFMU_KERNEL_F "obsfmu_kernel_f"
+#define OBSFMU_KERNEL_G "obsfmu_kernel_g"
 
 /* The layout's header, in the order of fmus.runtime.slave.kernel.HEADER */
 enum {
-    KL_ABI, KL_N, KL_M, KL_COLUMNS, KL_Q, KL_PORTS, KL_VARIABLES,
+    KL_ABI, KL_KIND, KL_N, KL_M, KL_COLUMNS, KL_Q, KL_PORTS, KL_VARIABLES, KL_PARAMETERS,
     KL_TIME, KL_X, KL_W, KL_D, KL_PREVIOUS, KL_PREVIOUS_TIME, KL_MOVING, KL_OUT, KL_C, KL_DMATRIX, KL_E,
-    KL_PHI, KL_G0, KL_G1, KL_H, KL_BOUND, KL_VALUES, KL_SCRATCH, KL_SIZE, KL_HEADER
+    KL_PHI, KL_G0, KL_G1, KL_H, KL_BOUND, KL_VALUES, KL_P, KL_SETTINGS, KL_SCRATCH, KL_SIZE, KL_HEADER
 };
+/* kinds of kernel */
+enum { KK_AFFINE = 1, KK_EXPRESSION = 2 };
 /* classes of a value reference (the layout's table) */
 enum { KV_PYTHON, KV_INPUT, KV_OUTPUT, KV_VALUE, KV_INTEGER };
 /* <port>_interpolation (fmus.runtime.slave.common.InputMode) */
 enum { KM_HOLD, KM_EXTRAPOLATE, KM_INTERPOLATE };
+/* settings of an expression kernel (observers.integrators.rk4_controlled's) */
+enum { KS_MAX_SUBSTEP, KS_RTOL, KS_ATOL, KS_BUDGET, KS_COUNT };
+
+/* an expression vector: out[i] = expression i at (t, x, u, p) */
+typedef void KernelFunction(double t, const double *x, const double *u, const double *p, double *out);
 
 typedef struct {
-    size_t n, m, columns, q, ports, variables;
+    int kind;
+    size_t n, m, columns, q, ports, variables, parameters;
     double *time, *x, *w, *d, *previous, *previous_time, *moving, *out, *C, *D, *e, *Phi, *G0, *G1, *h, *bound,
-        *values, *scratch;
+        *values, *p, *settings, *scratch;
     const int64_t *start, *mode, *table; /* port starts (ports + 1), port modes, (class, index) per variable */
-    int outputs_valid;                   /* out holds C x + D w + e of the present x and w */
+    KernelFunction *f, *g;               /* KK_EXPRESSION: the FMU's compiled expressions (set by the bridge) */
+    int outputs_valid;                   /* out holds the outputs of the present x and w */
     int slot;                            /* of the matrices: the one of the last step, or the one to fill next */
 } KernelImage;
+
+/* The doubles each field of the image holds (KL_TIME .. KL_SCRATCH) for these sizes. */
+static size_t kernel_field_size(const KernelImage *k, int field)
+{
+    size_t n = k->n, m = k->m, q = k->q, W = k->columns, affine = k->kind == KK_AFFINE;
+    switch (field) {
+    case KL_TIME: case KL_BOUND: return 1;
+    case KL_X: return n;
+    case KL_W: case KL_D: case KL_PREVIOUS: return m;
+    case KL_PREVIOUS_TIME: case KL_MOVING: return k->ports;
+    case KL_OUT: return q;
+    case KL_C: return affine * q * n;
+    case KL_DMATRIX: return affine * q * m;
+    case KL_E: return affine * q;
+    case KL_PHI: return affine * OBSFMU_KERNEL_SLOTS * n * n;
+    case KL_G0: case KL_G1: return affine * OBSFMU_KERNEL_SLOTS * n * W;
+    case KL_H: return affine * OBSFMU_KERNEL_SLOTS;
+    case KL_VALUES: return k->variables;
+    case KL_P: return k->parameters;
+    case KL_SETTINGS: return affine ? 0 : KS_COUNT;
+    case KL_SCRATCH: return n + 2 * W + m + q + 7 * n + m;
+    default: return 0;
+    }
+}
 
 /* Bind the image to the slave's vectors; 0 when they fit each other, -1 (and the image unusable) otherwise. */
 static int kernel_bind(KernelImage *k, double *memory, size_t memory_size, const int64_t *layout, size_t layout_size)
 {
     memset(k, 0, sizeof *k);
-    if (layout_size < KL_HEADER || layout[KL_ABI] != OBSFMU_KERNEL_ABI || layout[KL_SIZE] != (int64_t)memory_size)
+    if (layout_size < KL_HEADER || layout[KL_ABI] != OBSFMU_KERNEL_ABI || layout[KL_SIZE] != (int64_t)memory_size ||
+        (layout[KL_KIND] != KK_AFFINE && layout[KL_KIND] != KK_EXPRESSION))
         return -1;
     for (int field = KL_N; field < KL_HEADER; field++)
         if (layout[field] < 0 || layout[field] > (int64_t)memory_size) return -1;
+    k->kind = (int)layout[KL_KIND];
     k->n = (size_t)layout[KL_N], k->m = (size_t)layout[KL_M], k->columns = (size_t)layout[KL_COLUMNS];
     k->q = (size_t)layout[KL_Q], k->ports = (size_t)layout[KL_PORTS], k->variables = (size_t)layout[KL_VARIABLES];
-    if (k->columns < k->m || k->columns > k->m + 1 ||
-        layout_size != KL_HEADER + (k->ports + 1) + k->ports + 2 * k->variables ||
-        (size_t)layout[KL_SCRATCH] + k->n + 2 * k->columns + k->m + k->q > memory_size)
+    k->parameters = (size_t)layout[KL_PARAMETERS];
+    if (k->columns < k->m || k->columns > k->m + 1 || (k->kind == KK_EXPRESSION && k->q < k->n) ||
+        layout_size != KL_HEADER + (k->ports + 1) + k->ports + 2 * k->variables)
         return -1;
     double **fields[] = {&k->time, &k->x, &k->w, &k->d, &k->previous, &k->previous_time, &k->moving, &k->out, &k->C,
-                         &k->D, &k->e, &k->Phi, &k->G0, &k->G1, &k->h, &k->bound, &k->values, &k->scratch};
-    for (int field = KL_TIME; field <= KL_SCRATCH; field++) *fields[field - KL_TIME] = memory + layout[field];
+                         &k->D, &k->e, &k->Phi, &k->G0, &k->G1, &k->h, &k->bound, &k->values, &k->p, &k->settings,
+                         &k->scratch};
+    for (int field = KL_TIME; field <= KL_SCRATCH; field++) {
+        if ((size_t)layout[field] + kernel_field_size(k, field) > memory_size) return -1;
+        *fields[field - KL_TIME] = memory + layout[field];
+    }
     k->start = layout + KL_HEADER;
     k->mode = k->start + k->ports + 1;
     k->table = k->mode + k->ports;
     if (k->start[0] != 0 || (size_t)k->start[k->ports] != k->m) return -1;
+    for (size_t port = 0; port < k->ports; port++)
+        if (k->start[port + 1] < k->start[port]) return -1;
     for (size_t i = 0; i < k->variables; i++) {
         int64_t kind = k->table[2 * i], index = k->table[2 * i + 1];
         if ((kind == KV_INPUT && (index < 0 || (size_t)index >= k->m)) ||
@@ -132,7 +182,8 @@ static int kernel_set_derivatives(KernelImage *k, const unsigned vr[], size_t nv
 {
     size_t index;
     for (size_t i = 0; i < nvr; i++)
-        if (kernel_class(k, vr[i], &index) != KV_INPUT || (order != NULL && order[i] != 1) || !kernel_within(value[i], *k->bound))
+        if (kernel_class(k, vr[i], &index) != KV_INPUT || (order != NULL && order[i] != 1) ||
+            !kernel_within(value[i], *k->bound))
             return 0;
     for (size_t i = 0; i < nvr; i++) {
         kernel_class(k, vr[i], &index);
@@ -156,9 +207,15 @@ static void kernel_product(const double *A, const double *x, size_t rows, size_t
     }
 }
 
-/* out = C x + D w + e of this x and w */
-static void kernel_outputs(const KernelImage *k, const double *x, const double *w, double *out)
+/* The outputs at time t of this x and w: C x + D w + e (affine); [g(t, x, w, p); x] (expression). */
+static void kernel_outputs(const KernelImage *k, double t, const double *x, const double *w, double *out)
 {
+    if (k->kind == KK_EXPRESSION) {
+        size_t q = k->q - k->n;
+        k->g(t, x, w, k->p, out);
+        memcpy(out + q, x, k->n * sizeof *x);
+        return;
+    }
     kernel_product(k->C, x, k->q, k->n, out, 0);
     kernel_product(k->D, w, k->q, k->m, out, 1);
     for (size_t i = 0; i < k->q; i++) out[i] += k->e[i];
@@ -189,13 +246,15 @@ static int kernel_get_integers(const KernelImage *k, const unsigned vr[], size_t
     return 1;
 }
 
-/* fmi2GetReal: 1 when every value reference is an input, an output or a parameter (then read); 0 otherwise. */
+/* fmi2GetReal: 1 when every value reference is an input, an output or a parameter (then read); 0 otherwise (an
+ * output the kernel cannot vouch for too: not finite or beyond the bound -- the Python path refuses it). */
 static int kernel_get(KernelImage *k, const unsigned vr[], size_t nvr, double value[])
 {
     size_t index;
     if (!kernel_readable(k, vr, nvr)) return 0;
     if (!k->outputs_valid) {
-        kernel_outputs(k, k->x, k->w, k->out);
+        kernel_outputs(k, *k->time, k->x, k->w, k->out);
+        if (!kernel_small(k->out, k->q, *k->bound)) return 0;
         k->outputs_valid = 1;
     }
     for (size_t i = 0; i < nvr; i++) {
@@ -231,31 +290,120 @@ static void kernel_segments(const KernelImage *k, double t, double h, double *w0
     if (k->columns > k->m) w0[k->m] = 1.0, dw[k->m] = 0.0;
 }
 
-/* fmi2DoStep from t (the instance's time: the loader checked it) of size h.  1: stepped (state, inputs, their
- * record and the outputs at the step end); 0: not for the kernel, nothing changed (a bad step size, a value that
- * is not finite or beyond the bound: the Python path refuses it, naming it); -1: the matrices of this h are
- * needed first, into slot k->slot (the slave's kernel_matrices(h, slot)), nothing changed. */
-static int kernel_step(KernelImage *k, double t, double h)
+/* KK_AFFINE: x(t + h) into next; 1, or -1 when the matrices of h are needed first (into slot k->slot). */
+static int kernel_affine(KernelImage *k, double h, const double *w0, const double *dw, double *next)
 {
-    if (!(h > 0.0 && h <= 1.7976931348623157e308 && t == t)) return 0;
     if (k->n && k->h[k->slot] != h) {
         int found = -1;
         for (int slot = 0; slot < OBSFMU_KERNEL_SLOTS && found < 0; slot++)
             if (k->h[slot] == h) found = slot;
-        if (found < 0) {                         /* the slave fills the next slot, round robin */
+        if (found < 0) { /* the slave fills the next slot, round robin */
             k->slot = (k->slot + 1) % OBSFMU_KERNEL_SLOTS;
             return -1;
         }
         k->slot = found;
     }
-    const double *Phi = k->Phi + (size_t)k->slot * k->n * k->n, *G0 = k->G0 + (size_t)k->slot * k->n * k->columns,
-                 *G1 = k->G1 + (size_t)k->slot * k->n * k->columns;
+    size_t n = k->n, W = k->columns, slot = (size_t)k->slot;
+    kernel_product(k->Phi + slot * n * n, k->x, n, n, next, 0);
+    kernel_product(k->G0 + slot * n * W, w0, n, W, next, 1);
+    kernel_product(k->G1 + slot * n * W, dw, n, W, next, 1);
+    return 1;
+}
+
+/* f(s, x, u(s), p) with the input u(s) = w0 + (s - t) dw of the step from t (plants/expression.py: rhs) */
+static void kernel_rhs(const KernelImage *k, double t, double s, const double *x, const double *w0,
+                       const double *dw, double *u, double *out)
+{
+    double elapsed = s - t;
+    for (size_t i = 0; i < k->m; i++) u[i] = w0[i] + elapsed * dw[i];
+    k->f(s, x, u, k->p, out);
+}
+
+/* KK_EXPRESSION: x(t + h) into next by observers.integrators.substep_count and rk4_controlled, operation for
+ * operation (numpy's elementwise order); 1, or 0 when the Python path must take the step (a budget exceeded, a state
+ * that is not finite: it refuses them, naming why). */
+static int kernel_expression(KernelImage *k, double t, double h, const double *w0, const double *dw, double *next,
+                             double *work)
+{
+    size_t n = k->n;
+    double max_substep = k->settings[KS_MAX_SUBSTEP], rtol = k->settings[KS_RTOL], atol = k->settings[KS_ATOL];
+    double budget = k->settings[KS_BUDGET];
+    double by_length = h / max_substep;
+    if (!(by_length <= budget * (1.0 + 1e-9))) return 0;                  /* substep_count's BudgetError */
+    double count = ceil(by_length - 1e-9);
+    long substeps = count > 1.0 ? (long)count : 1;
+    double *x = work, *k1 = x + n, *k2 = k1 + n, *k3 = k2 + n, *k4 = k3 + n, *k5 = k4 + n, *stage = k5 + n;
+    double *u = stage + n, *swap;
+    memcpy(x, k->x, n * sizeof *x);
+    double nominal = h / (double)substeps, dt = nominal, s = t, stop = t + h, ratio = 0.0, end;
+    long attempts = 0, i = 0;
+    int rejected = 0;
+    kernel_rhs(k, t, t, x, w0, dw, u, k1);
+    for (;;) {
+        if (!rejected) {                                   /* rk4_step's grid, to the last bit */
+            s = t + (double)i * nominal, end = t + (double)(i + 1) * nominal, dt = nominal;
+        } else {
+            end = s + dt < stop - 1e-12 * fabs(h) ? s + dt : stop;
+            dt = end - s;
+        }
+        if ((double)++attempts > budget) return 0;         /* the BudgetError of rk4_controlled */
+        double half = dt / 2, sixth = dt / 6;
+        for (size_t j = 0; j < n; j++) stage[j] = x[j] + half * k1[j];
+        kernel_rhs(k, t, s + half, stage, w0, dw, u, k2);
+        for (size_t j = 0; j < n; j++) stage[j] = x[j] + half * k2[j];
+        kernel_rhs(k, t, s + half, stage, w0, dw, u, k3);
+        for (size_t j = 0; j < n; j++) stage[j] = x[j] + dt * k3[j];
+        kernel_rhs(k, t, end, stage, w0, dw, u, k4);
+        int finite = 1;
+        for (size_t j = 0; j < n; j++) {
+            next[j] = x[j] + sixth * (k1[j] + 2 * k2[j] + 2 * k3[j] + k4[j]);
+            finite &= isfinite(next[j]) != 0;
+        }
+        if (!finite) return 0;
+        kernel_rhs(k, t, end, next, w0, dw, u, k5);
+        ratio = 0.0;
+        for (size_t j = 0; j < n; j++) {                   /* np.max: NaN wins */
+            double a = fabs(x[j]), b = fabs(next[j]);
+            double scale = atol + rtol * (a >= b ? a : b);
+            double error = fabs(sixth * (k4[j] - k5[j])) / scale;
+            if (error != error || error > ratio) ratio = error;
+            if (ratio != ratio) break;
+        }
+        if (!(ratio <= 1.0)) {                             /* NaN too: shorter */
+            rejected = 1;
+            double factor = 0.9 * pow(ratio, -0.25);
+            dt *= isfinite(ratio) ? (factor > 0.1 ? factor : 0.1) : 0.1;
+            continue;
+        }
+        memcpy(x, next, n * sizeof *x);
+        swap = k1, k1 = k5, k5 = swap;
+        s = end;
+        i++;
+        if (s >= stop || (!rejected && i == substeps)) {
+            memcpy(next, x, n * sizeof *x);
+            return 1;
+        }
+        if (rejected) {
+            double grow = ratio > 0 ? 0.9 * pow(ratio, -0.25) : 5.0;
+            double longer = dt * (grow < 5.0 ? grow : 5.0);
+            dt = longer < nominal ? longer : nominal;
+        }
+    }
+}
+
+/* fmi2DoStep from t (the instance's time: the loader checked it) of size h.  1: stepped (state, inputs, their
+ * record and the outputs at the step end); 0: not for the kernel, nothing changed (a bad step size, a value that
+ * is not finite or beyond the bound, a budget exceeded: the Python path refuses it, naming it); -1: the matrices of
+ * this h are needed first, into slot k->slot (the slave's kernel_matrices(h, slot)), nothing changed. */
+static int kernel_step(KernelImage *k, double t, double h)
+{
+    if (!(h > 0.0 && h <= 1.7976931348623157e308 && t == t)) return 0;
     double *next = k->scratch, *w0 = next + k->n, *dw = w0 + k->columns, *end = dw + k->columns, *out = end + k->m;
+    double *work = out + k->q;
     kernel_segments(k, t, h, w0, dw, end);
-    kernel_product(Phi, k->x, k->n, k->n, next, 0);
-    kernel_product(G0, w0, k->n, k->columns, next, 1);
-    kernel_product(G1, dw, k->n, k->columns, next, 1);
-    kernel_outputs(k, next, end, out);
+    int taken = k->kind == KK_AFFINE ? kernel_affine(k, h, w0, dw, next) : kernel_expression(k, t, h, w0, dw, next, work);
+    if (taken <= 0) return taken;
+    kernel_outputs(k, t + h, next, end, out);
     double bound = *k->bound;
     if (!kernel_small(next, k->n, bound) || !kernel_small(out, k->q, bound) || !kernel_small(end, k->m, bound))
         return 0;

@@ -26,14 +26,15 @@ from ..definition import FmuDefinition, Parameter, Port, valid_identifier
 from .linear import vector_unit
 from . import register
 
-__all__ = ["expression_plant_definition"]
+__all__ = ["expression_plant_definition", "expression_names"]
 
 #: parameter names of the FMU itself, never a named parameter of the expressions
 _RESERVED = {"x0", "y", "max_substep", "rtol", "atol", "sample_time", "substep_budget", "u_interpolation", "t", *VECTORS, *CONSTANTS,
              *FUNCTIONS}
 
 
-def _names(options: Mapping) -> Names:
+def expression_names(options: Mapping) -> Names:
+    """The names the expressions of an expression plant's definition ``options`` may use."""
     names = options["parameters"]
     return Names(x=len(options["f"]), u=int(options["inputs"]), p=len(names),
                  parameters={name: i for i, name in enumerate(names, start=1)})
@@ -41,7 +42,7 @@ def _names(options: Mapping) -> Names:
 
 def _compiled(options: Mapping, prefix: str = ""):
     """``(f, h)`` compiled; :class:`~observers.expressions.ExpressionError` names the field."""
-    names = _names(options)
+    names = expression_names(options)
     return (compile_vector(options["f"], names, Source(prefix + "f")),
             compile_vector(options["h"], names, Source(prefix + "h")))
 

@@ -1,7 +1,8 @@
-"""The compiled step kernel's image of the slave: the steps of a linear block in C, without entering Python (issue 39).
+"""The compiled step kernel's image of the slave: the steps of a block in C, without entering Python (issue 39).
 
-An FMU whose block has an :class:`~observers.affine_form.AffineForm` (continuous LTI plant, Luenberger observer,
-state feedback, integral state feedback) is stepped by the native bridge in C (``fmus/native/kernel.h``):
+An FMU whose block has a kernel form (:mod:`observers.kernel_forms`: the continuous LTI plant, Luenberger observer,
+state feedback and integral state feedback; the continuous expression plant, whose expressions the build compiles
+to C, :func:`kernel_source`) is stepped by the native bridge in C (``fmus/native/kernel.h``):
 ``fmi2DoStep``, ``fmi2SetReal`` of inputs, ``fmi2SetRealInputDerivatives``, ``fmi2GetReal`` of inputs, outputs
 and parameters, and the native one-call step.  Python keeps everything else -- instantiation and its checks,
 the parameters, FMU states, logging, and every step the kernel cannot vouch for (a bad input, a value beyond
@@ -20,8 +21,8 @@ The protocol (the bridge drives it):
   before, in one format: a state of one path restores in the other).
 * :meth:`Kernels.kernel_matrices` -- ``Phi, G0, G1`` for a new step size (the block's own propagator).
 
-Equal results: the kernel evaluates the block's own matrices; the Python path and the kernel agree to round-off
-(tests/fmus/native/test_kernels.py: 1e-12 relative on the linear scenarios).
+Equal results: the kernel evaluates the block's own matrices, or its expressions and integrator operation for
+operation; the Python path and the kernel agree to round-off (tests/fmus/native/test_kernels.py: 1e-12 relative).
 """
 
 from __future__ import annotations
@@ -29,21 +30,27 @@ from __future__ import annotations
 import numpy as np
 from pythonfmu import Integer, Real
 
-from obsfmu.observers.affine_form import AffineForm
+from obsfmu.observers.kernel_forms import AffineForm, ExpressionForm
 
 from .common import EXTRAPOLATE, INTERPOLATE
 
-__all__ = ["Kernels", "KERNEL_ABI", "HEADER"]
+__all__ = ["Kernels", "KERNEL_ABI", "HEADER", "SYMBOLS", "kernel_source"]
 
 #: the version of the image's layout, checked by the bridge (= OBSFMU_KERNEL_ABI in fmus/native/kernel.h)
-KERNEL_ABI = 1
+KERNEL_ABI = 2
+#: the kinds of kernel (= KK_AFFINE, KK_EXPRESSION)
+AFFINE, EXPRESSION = 1, 2
+#: the functions of an FMU's kernel library: its expressions f and h (= OBSFMU_KERNEL_F, OBSFMU_KERNEL_G)
+SYMBOLS = ("obsfmu_kernel_f", "obsfmu_kernel_g")
 #: the step sizes whose matrices the image keeps (= OBSFMU_KERNEL_SLOTS): an importer stepping t_(k+1) - t_k
 #: (fmusim) alternates between a few sizes one ulp apart
 SLOTS = 8
 #: the fields of the layout's header, in order (kernel.h reads them by these positions)
-HEADER = ("abi", "n", "m", "columns", "q", "ports", "variables", "time", "x", "w", "d", "previous",
-          "previous_time", "moving", "out", "C", "D", "e", "Phi", "G0", "G1", "h", "bound", "values", "scratch",
-          "size")
+HEADER = ("abi", "kind", "n", "m", "columns", "q", "ports", "variables", "parameters", "time", "x", "w", "d",
+          "previous", "previous_time", "moving", "out", "C", "D", "e", "Phi", "G0", "G1", "h", "bound", "values", "p",
+          "settings", "scratch", "size")
+#: where the fields start in HEADER (after the sizes)
+_FIELDS = HEADER.index("time")
 #: classes of a value reference in the layout's table (after the header and the ports)
 PYTHON, INPUT, OUTPUT, VALUE, INTEGER = 0, 1, 2, 3, 4
 
@@ -68,23 +75,29 @@ class Kernels:
             return False
         return self._image(form, block)
 
-    def _kernel_form(self) -> AffineForm | None:
-        """The block's affine form, or None when this FMU steps in Python."""
+    def _kernel_form(self) -> AffineForm | ExpressionForm | None:
+        """The block's kernel form, or None when this FMU steps in Python."""
         if self.definition.kernels == "python" or self._step_rate:   # asked for; or a system file's convergence
             return None                                                  # flag, which the Python step vouches for
         block = self._try_block()
-        form = getattr(block, "affine_form", None)
-        return form() if form is not None else None
+        form = getattr(block, "kernel_form", None)
+        form = form() if form is not None else None
+        if isinstance(form, ExpressionForm) and [p.name for p in self.definition.outputs] != list(form.outputs):
+            return None
+        return form
 
-    def _image(self, form: AffineForm, block) -> tuple[np.ndarray, np.ndarray]:
+    def _image(self, form: AffineForm | ExpressionForm, block) -> tuple[np.ndarray, np.ndarray]:
+        affine = isinstance(form, AffineForm)
         n, m = form.size, self._input_flat.size
-        columns = m + form.constant
+        columns = m + (affine and form.constant)
         ports = self.definition.inputs
         q = sum(p.size for p in self.definition.outputs)
+        parameters = 0 if affine else form.parameters.size
         sizes = {"time": 1, "x": n, "w": m, "d": m, "previous": m, "previous_time": len(ports), "moving": len(ports),
-                 "out": q, "C": q * n, "D": q * m, "e": q, "Phi": SLOTS * n * n, "G0": SLOTS * n * columns,
-                 "G1": SLOTS * n * columns, "h": SLOTS,
-                 "bound": 1, "values": len(self.vars), "scratch": n + 2 * columns + m + q}
+                 "out": q, "C": affine * q * n, "D": affine * q * m, "e": affine * q, "Phi": affine * SLOTS * n * n,
+                 "G0": affine * SLOTS * n * columns, "G1": affine * SLOTS * n * columns, "h": affine * SLOTS,
+                 "bound": 1, "values": len(self.vars), "p": parameters, "settings": 0 if affine else 4,
+                 "scratch": n + 2 * columns + m + q + 7 * n + m}      # = kernel_field_size in kernel.h
         offsets, total = {}, 0
         for name, size in sizes.items():
             offsets[name] = total
@@ -101,14 +114,18 @@ class Kernels:
         record = self._last_inputs
         put("previous", np.concatenate([record[p.name][0] for p in ports]) if ports else [])
         put("previous_time", [record[p.name][1] for p in ports])
-        C, D, e = self._output_matrices(form, n, m)
-        put("C", C)
-        put("D", D)
-        put("e", e)
-        put("h", np.nan)                                      # no matrices yet: the first step asks for them
+        if affine:
+            C, D, e = self._output_matrices(form, n, m)
+            put("C", C)
+            put("D", D)
+            put("e", e)
+            put("h", np.nan)                                  # no matrices yet: the first step asks for them
+        else:
+            put("p", form.parameters)
+            put("settings", form.settings)
         put("bound", block.magnitude_bound)
-        layout = [KERNEL_ABI, n, m, columns, q, len(ports), len(self.vars)] + [offsets[f] for f in HEADER[7:-1]] + \
-            [total]
+        layout = [KERNEL_ABI, AFFINE if affine else EXPRESSION, n, m, columns, q, len(ports), len(self.vars),
+                  parameters] + [offsets[f] for f in HEADER[_FIELDS:-1]] + [total]
         starts = np.cumsum([0] + [p.size for p in ports]).tolist()
         layout += starts + [int(self._modes[p.name][0]) for p in ports]
         layout += self._variable_table(memory, offsets["values"])
@@ -155,7 +172,7 @@ class Kernels:
         """``Phi, G0, G1`` of step ``h`` into the image's ``slot``; False when the block cannot step ``h`` (the
         Python path then refuses the step, naming why)."""
         form, offsets, memory = self._kernel
-        if not 0 <= slot < SLOTS:
+        if not isinstance(form, AffineForm) or not 0 <= slot < SLOTS:
             return False
         try:
             Phi, G0, G1 = form.step(h)
@@ -185,3 +202,16 @@ class Kernels:
                 store[:] = memory[offsets["d"]:offsets["d"] + m][where]
         self._last_inputs, self._derivatives = record, derivatives
         self._outputs_cache, self._snapshot = None, None
+
+
+def kernel_source(definition) -> str | None:
+    """The C source of the FMU's kernel library (the expressions of a continuous expression plant, compiled by the
+    builder for each platform: :func:`fmus.native.kernel_library`), or None when its kernel needs none."""
+    if definition.kind != "expression-plant" or definition.kernels == "python" or \
+            any(p.name == "sample_time" for p in definition.parameters):
+        return None
+    from obsfmu.observers.expressions_c import c_source
+
+    from ..kinds.expression import expression_names
+    f, h = definition.options["f"], definition.options["h"]
+    return c_source(dict(zip(SYMBOLS, (f, h))), expression_names(definition.options))

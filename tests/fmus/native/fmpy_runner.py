@@ -3,8 +3,8 @@
     python fmpy_runner.py JOB.json
 
 JOB lists ``{"fmu": path, "stop": stop time, "step": communication step, "out": result.npy}``; each result is
-saved with ``numpy.save`` (a structured array: time and the outputs), and ``out + ".txt"`` gets the seconds the
-run took.  The same script runs in fmpy for Windows (under wine) and in fmpy on Linux, so the two differ only in
+saved with ``numpy.save`` (a structured array: time and the outputs), ``out + ".txt"`` gets the seconds the
+run took and ``out + ".log"`` the FMU's messages (logging on).  The same script runs in fmpy for Windows (under wine) and in fmpy on Linux, so the two differ only in
 the platform.  A failing FMU writes ``out + ".error"`` with the exception and the others go on.
 """
 
@@ -24,14 +24,20 @@ def main(job_file: str) -> None:
         jobs = json.load(file)
     for job in jobs:
         begin = time.perf_counter()
+        messages = []
+
+        def logger(environment, instance, status, category, message, messages=messages):
+            messages.append(message.decode(errors="replace") if isinstance(message, bytes) else str(message))
         try:
             result = simulate_fmu(job["fmu"], stop_time=job["stop"], output_interval=job["step"],
-                                  step_size=job["step"])
+                                  step_size=job["step"], debug_logging=True, logger=logger)
         except Exception as exc:  # noqa: BLE001 -- reported per FMU, the next one runs
             with open(job["out"] + ".error", "w", encoding="utf-8") as file:
                 file.write(f"{type(exc).__name__}: {exc}")
             continue
         np.save(job["out"], result)
+        with open(job["out"] + ".log", "w", encoding="utf-8") as file:
+            file.write("\n".join(messages))
         with open(job["out"] + ".txt", "w", encoding="utf-8") as file:
             file.write(repr(time.perf_counter() - begin))
 

@@ -26,6 +26,10 @@ SHIP = ROOT / "fmus" / "scenarios" / "ship" / "system.toml"
 AGREEMENT = 1e-12
 
 
+#: what the bridge logs (logging on) when an instance first steps in C
+IN_C = "steps run in the compiled kernel"
+
+
 def both_paths(monkeypatch, run):
     """``run()`` with the kernels, then with ``OBSFMU_KERNELS=python``."""
     monkeypatch.delenv("OBSFMU_KERNELS", raising=False)
@@ -43,12 +47,13 @@ def assert_same_columns(fast, slow, columns):
         assert np.max(np.abs(a - b)) <= AGREEMENT * scale, (column, np.max(np.abs(a - b)) / scale)
 
 
-@pytest.mark.parametrize("order, coupling", [("gauss-seidel", "linear"), ("jacobi", "linear"), ("gauss-seidel", "hold")])
-def test_ship_scenario_equals_python_path(monkeypatch, build_dir, order, coupling):
-    """Paper 002 through the master (input derivatives, interpolation modes, the one-call step): plant, observer
-    and state feedback in C equal the Python path state for state (0.2 s, 10 000 steps)."""
+@pytest.mark.parametrize("order, coupling, version", [("gauss-seidel", "linear", 2), ("jacobi", "linear", 2),
+                                                      ("gauss-seidel", "hold", 2), ("gauss-seidel", "linear", 3)])
+def test_ship_scenario_equals_python_path(monkeypatch, build_dir, order, coupling, version):
+    """Paper 002 through the master (input derivatives, interpolation modes, the one-call step; FMI 2.0 and 3.0):
+    plant, observer and state feedback in C equal the Python path state for state (0.2 s, 10 000 steps)."""
     fast, slow = both_paths(monkeypatch, lambda: obsfmu.run("ship", stop_time=0.2, order=order, coupling=coupling,
-                                                            build_dir=build_dir))
+                                                            build_dir=build_dir, fmi_version=version))
     columns = [c for c in fast.columns if c != "time"]
     assert {"plant.x[1]", "observer.x_hat[2]", "controller.u"} <= set(columns)
     assert_same_columns(fast, slow, columns)
@@ -87,6 +92,7 @@ def test_fmu_state_moves_between_paths(monkeypatch, ship_fmus, model):
     fmu = ship_fmus[model]
     reference = probe(fmu, "reference", monkeypatch=monkeypatch)
     drive(reference, 0, 300)
+    assert IN_C in reference.messages()
     path = probe(fmu, "first", monkeypatch=monkeypatch)
     drive(path, 0, 100)
     for first, kernels in ((100, "python"), (200, None)):
@@ -143,3 +149,52 @@ def test_kernels_python_is_recorded_in_the_fmu(tmp_path, ship_fmus):
     fmu = tmp_path / "ship_plant.fmu"
     assert "kernels=python" in zipfile.ZipFile(fmu).read("resources/obsfmu_native.txt").decode()
     assert "kernels" not in zipfile.ZipFile(ship_fmus["ship_plant"]).read("resources/obsfmu_native.txt").decode()
+
+
+# ------------------------------------------------------------------ expression plants: their expressions in C
+
+#: a forced Duffing oscillator (benchmarks/expression_plant.py), with every kind of operation of the grammar
+DUFFING = ["x[2]", "-delta * x[2] - alpha * x[1] - beta * x[1]^3 + gain * u[1]"]
+OUTPUTS = ["x[1]", "where(x[1] > 0, sqrt(abs(x[1])), -log(1 + x[1]^2)) + min(x[2], 0.5) + atan2(x[2], 1 + u[1] % 2)"]
+
+
+@pytest.fixture(scope="module")
+def expression_fmus(tmp_path_factory):
+    """A Duffing plant (RK4 sub-steps of at most 1e-3 s, an output with the awkward functions), and a stiff plant
+    (x' = -2700 x + u at max_substep 1e-3: sub-steps rejected and retried) whose budget a long step exceeds."""
+    from obsfmu.fmus.builder import build_fmu
+    from obsfmu.fmus.runtime.kinds.expression import expression_plant_definition
+    folder = tmp_path_factory.mktemp("expression")
+    duffing = expression_plant_definition("duffing", DUFFING, OUTPUTS, [1.0, 0.0], inputs=1,
+                                          parameters={"delta": 0.2, "alpha": -1.0, "beta": 1.0, "gain": 0.3})
+    stiff = expression_plant_definition("stiff", ["-2700 * x[1] + u[1]"], ["x[1]"], [1.0], inputs=1, rtol=1e-6,
+                                        atol=1e-9)
+    return {d.model_name: build_fmu(d, folder) for d in (duffing, stiff)}
+
+
+@pytest.mark.parametrize("model, step, count", [("duffing", 1e-2, 200), ("duffing", 2.5e-4, 200), ("stiff", 1e-2, 20)])
+def test_expression_plant_equals_python_path(monkeypatch, expression_fmus, model, step, count):
+    """The Duffing plant over several RK4 sub-steps per step and less than one, the stiff plant through rejected
+    sub-steps: the compiled expressions and integrator give the Python path's numbers, inputs and input derivatives
+    set every step."""
+    def run():
+        instance = Probe(expression_fmus[model], "expression")
+        rows = instance.run(step, count)
+        instance.free()
+        return {"outputs": rows, "in C": IN_C in instance.messages()}
+    fast, slow = both_paths(monkeypatch, run)
+    assert fast["in C"] and not slow["in C"]
+    assert np.all(np.isfinite(fast["outputs"]))
+    assert_same_columns(fast, slow, ["outputs"])
+
+
+def test_expression_budget_refused_by_the_python_path(monkeypatch, expression_fmus):
+    """A step the stiff plant cannot take within its substep_budget: the kernel leaves it to the Python path,
+    which refuses it naming substep_budget; the state is unchanged."""
+    instance = probe(expression_fmus["stiff"], "budget", monkeypatch=monkeypatch)
+    drive(instance, 0, 5)
+    before = instance.outputs()
+    assert instance.step(20.0) == DISCARD                        # 20 000 sub-steps of max_substep: > 10 000
+    assert "substep_budget" in instance.messages()
+    np.testing.assert_array_equal(instance.outputs(), before)
+    instance.free()

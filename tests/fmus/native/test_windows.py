@@ -304,6 +304,25 @@ def designs_dual(mingw, tmp_path_factory):
     return {path.stem: path for path in sorted(out.glob("*.fmu")) if path.stem != "designs_plant"}
 
 
+@pytest.fixture(scope="module")
+def expression_dual(mingw, tmp_path_factory):
+    """An expression plant (a forced Duffing oscillator) for both platforms: its expressions compiled to C by
+    MinGW-w64 into its win64 kernel library (issue 39)."""
+    from obsfmu.fmus.builder import build_fmu
+    from obsfmu.fmus.runtime.definition import experiment
+    from obsfmu.fmus.runtime.kinds.expression import expression_plant_definition
+    definition = expression_plant_definition("duffing_plant", ["x[2]", "-0.2 * x[2] + x[1] - x[1]^3 + 0.3 * sin(t)"],
+                                             ["x[1]", "atan2(x[2], 1) + min(x[1], 0.5)"], [1.0, 0.0])
+    definition.default_experiment = experiment(stop_time=1.0, step=1e-2)
+    fmu = build_fmu(definition, tmp_path_factory.mktemp("expression dual"), platforms=DUAL)
+    return {fmu.stem: fmu}
+
+
+#: the FMUs whose blocks step in the compiled kernel (issue 39)
+KERNEL_MODELS = ("ship_plant", "ship_observer", "ship_controller", "dcmotor_plant", "dcmotor_observer",
+                 "dcmotor_controller", "designs_observer", "designs_controller", "duffing_plant")
+
+
 def fmpy_jobs(fmus: dict[str, Path], folder: Path, as_path) -> list[dict]:
     """One short run per FMU at its DefaultExperiment's step (100 steps at most): unzipped folders (fmpy
     simulates those as they are), and ``ship_plant`` as the .fmu file, which fmpy unzips itself."""
@@ -318,19 +337,22 @@ def fmpy_jobs(fmus: dict[str, Path], folder: Path, as_path) -> list[dict]:
 
 
 @pytest.fixture(scope="module")
-def fmpy_runs(wine_host, dual, dcmotor_dual, designs_dual, tmp_path_factory):
-    """model -> (fmpy for Windows's result, fmpy on Linux's result) of every FMU run alone."""
+def fmpy_runs(wine_host, dual, dcmotor_dual, designs_dual, expression_dual, tmp_path_factory):
+    """model -> (fmpy for Windows's result, fmpy on Linux's result) of every FMU run alone; and fmpy for Windows
+    with ``OBSFMU_KERNELS=python`` for the FMUs with a compiled kernel ("windows python")."""
     work = tmp_path_factory.mktemp("fmpy windows")
     python = windows_fmpy(work)
-    fmus = {**dual, **dcmotor_dual, **designs_dual}
+    fmus = {**dual, **dcmotor_dual, **designs_dual, **expression_dual}
     runner = Path(__file__).with_name("fmpy_runner.py")
     outcome = {}
-    for side, as_path in (("windows", windows_path), ("linux", str)):
+    for side, as_path in (("windows", windows_path), ("linux", str), ("windows python", windows_path)):
         (work / side).mkdir()
         job = work / side / "job.json"
-        job.write_text(json.dumps(fmpy_jobs(fmus, work / side, as_path)))
-        if side == "windows":
-            completed = wine_host.run(python, windows_path(runner), windows_path(job))
+        chosen = {m: f for m, f in fmus.items() if m in KERNEL_MODELS} if side == "windows python" else fmus
+        job.write_text(json.dumps(fmpy_jobs(chosen, work / side, as_path)))
+        if side.startswith("windows"):
+            completed = wine_host.run(python, windows_path(runner), windows_path(job),
+                                      env={"OBSFMU_KERNELS": "python"} if side == "windows python" else None)
         else:
             completed = subprocess.run([sys.executable, str(runner), str(job)], capture_output=True, text=True,
                                        timeout=900)
@@ -348,7 +370,7 @@ def _result(folder: Path, model: str) -> np.ndarray:
 @pytest.mark.parametrize("model", sorted({m for s in SCENARIOS.values() for _, m, _ in s.components}
                                          | {f"dcmotor_{c}" for c in ("plant", "reference", "target", "observer",
                                                                      "controller")}
-                                         | {"designs_observer", "designs_controller"}))
+                                         | {"designs_observer", "designs_controller", "duffing_plant"}))
 def test_fmpy_for_windows_runs_each_fmu_like_fmpy_on_linux(fmpy_runs, model):
     _, outcome = fmpy_runs
     windows, linux = _result(outcome["windows"], model), _result(outcome["linux"], model)
@@ -360,6 +382,19 @@ def test_fmpy_for_windows_runs_each_fmu_like_fmpy_on_linux(fmpy_runs, model):
         # measured: <= 1.3e-16 (numpy 2.1.3 on Windows); but an `excitation` is a determinant of an extended
         # regressor, whose rounding grows with its condition: the UIO observer's (stages 2-3 adapting) 1.4e-11
         assert deviation <= (1e-9 if name.startswith("excitation") else 1e-12), (name, deviation)
+
+
+@pytest.mark.parametrize("model", KERNEL_MODELS)
+def test_the_compiled_kernels_run_under_wine_as_the_python_path(fmpy_runs, model):
+    """Issue 39 on win64: the kernel (the bridge's C, an expression plant's MinGW-compiled expressions) takes the
+    steps under wine -- the FMU says so -- and gives the numbers of the Python path of the same FMU to 1e-12."""
+    _, outcome = fmpy_runs
+    fast, slow = _result(outcome["windows"], model), _result(outcome["windows python"], model)
+    assert "steps run in the compiled kernel" in (outcome["windows"] / f"{model}.npy.log").read_text()
+    assert "steps run in the compiled kernel" not in (outcome["windows python"] / f"{model}.npy.log").read_text()
+    for name in fast.dtype.names[1:]:
+        scale = max(np.max(np.abs(slow[name])), 1e-300)
+        assert np.max(np.abs(fast[name] - slow[name])) <= 1e-12 * scale, name
 
 
 # ------------------------------------------------------------------ a dual-platform FMU in Linux tools
