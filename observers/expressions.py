@@ -35,7 +35,7 @@ import numpy as np
 from .checks import ParameterError
 
 __all__ = ["ExpressionError", "Source", "Names", "compile_expression", "compile_vector", "VectorFunction", "FUNCTIONS",
-           "MAX_LENGTH", "MAX_DEPTH"]
+           "MAX_LENGTH", "MAX_DEPTH", "check_text", "parse_text"]
 
 MAX_LENGTH = 4000      #: characters in one expression
 MAX_DEPTH = 60         #: nesting of brackets and of the expression tree
@@ -219,7 +219,9 @@ def _plain(kind, left: "Evaluator", right: "Evaluator", exponent: int | None = N
 
 
 # ------------------------------------------------------------------------------------------ checking
-def _check_text(text, source: Source) -> str:
+def check_text(text, source: Source) -> str:
+    """``text`` checked against the limits (length, brackets, characters) and with ``^`` as a power: what
+    :func:`parse_text` parses; :class:`ExpressionError` naming the field."""
     if not isinstance(text, str):
         raise ExpressionError(f"{source.field}: expected an expression as a string, got {text!r}")
     if len(text) > MAX_LENGTH:
@@ -248,7 +250,8 @@ def _check_text(text, source: Source) -> str:
     return text.replace("^", "**")            # y^3: a power, with the precedence of ** (not Python's xor)
 
 
-def _parse(text: str, source: Source) -> ast.expr:
+def parse_text(text: str, source: Source) -> ast.expr:
+    """The Python syntax tree of a checked ``text`` (:func:`check_text`); :class:`ExpressionError` naming the place."""
     try:        # in brackets, so that an expression may span lines (the columns of line 1 shift by one)
         tree = ast.parse("(" + text + "\n)", mode="eval")
     except SyntaxError as exc:
@@ -401,9 +404,9 @@ class _Compiler:
 
 
 def _compiled(text: str, names: Names, source: Source) -> tuple[Evaluator, set[str]]:
-    text = _check_text(text, source)
+    text = check_text(text, source)
     compiler = _Compiler(text, names, source)
-    return compiler.build(_parse(text, source)), compiler.uses
+    return compiler.build(parse_text(text, source)), compiler.uses
 
 
 def compile_expression(text: str, names: Names, source: Source) -> Evaluator:

@@ -38,7 +38,7 @@ import math
 import re
 from collections.abc import Sequence
 
-from .expressions import CONSTANTS, FUNCTIONS, Names, Source, _check_text, _parse, compile_vector
+from .expressions import CONSTANTS, FUNCTIONS, Names, Source, check_text, parse_text, compile_vector
 
 __all__ = ["c_source"]
 
@@ -356,7 +356,7 @@ def _function(symbol: str, texts: Sequence[str], names: Names, source: Source, h
     translator, lines = _Translator(names, helpers), [f"EX_EXPORT void {symbol}({SIGNATURE})", "{"]
     for i, text in enumerate(texts):
         where = Source(f"{source.field}[{i + 1}]", source.file, source.line, source.column)
-        tree = _parse(_check_text(text, where), where)
+        tree = parse_text(check_text(text, where), where)
         lines += [f"    /* {_comment(text)} */", f"    out[{i}] = {translator.code(tree)};"]
     return "\n".join([*lines, "}"])
 

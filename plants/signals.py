@@ -21,6 +21,7 @@ import numpy as np
 
 from obsfmu.observers.block import Block, Segment
 from obsfmu.observers.checks import ParameterError, as_vector, require_positive
+from obsfmu.observers.kernel_forms import ExpressionForm
 
 __all__ = ["SampledNoise", "Waveform", "SignalSource"]
 
@@ -64,6 +65,21 @@ class Waveform:
             value += self.step_height
         return value + self.exp_amplitude * np.exp(-self.exp_rate * t)
 
+    def parameters(self) -> np.ndarray:
+        """The vector ``p`` of :meth:`expression`: offset, amplitudes, omegas, phases, step time and height,
+        exponential amplitude and rate."""
+        return np.concatenate([[self.offset], self.amplitude, self.omega, self.phase,
+                               [self.step_time, self.step_height, self.exp_amplitude, self.exp_rate]])
+
+    @staticmethod
+    def expression(sines: int) -> str:
+        """:meth:`__call__` of ``sines`` terms in the expression language (:mod:`observers.expressions`), reading
+        :meth:`parameters` as ``p``, the same operations in the same order (the compiled kernel's output)."""
+        terms = " + ".join(f"p[{2 + i}] * sin(p[{2 + sines + i}] * t + p[{2 + 2 * sines + i}])" for i in range(sines))
+        last = 2 + 3 * sines                                   # step_time; then height, exp amplitude, rate
+        return (f"p[1] + ({terms or '0'}) + where(t >= p[{last}], p[{last + 1}], 0) "
+                f"+ p[{last + 2}] * exp(-p[{last + 3}] * t)")
+
     def derivative(self, t: float) -> float:
         """Time derivative (the step contributes nothing away from ``step_time``)."""
         value = float(np.sum(self.amplitude * self.omega * np.cos(self.omega * t + self.phase)))
@@ -90,3 +106,10 @@ class SignalSource(Block):
 
     def advance(self, t: float, h: float, inputs: Mapping[str, Segment]) -> None:
         """Nothing to integrate: the output is a function of time."""
+
+    def kernel_form(self) -> ExpressionForm | None:
+        """The compiled kernel's form without noise (:meth:`Waveform.expression`, compiled when the FMU is built);
+        with noise the source steps in Python (its random stream is numpy's)."""
+        if self.noise is not None:
+            return None
+        return ExpressionForm("", 0, (), self.waveform.parameters(), (np.inf, 1.0, 1.0, 1.0), outputs=("y",))

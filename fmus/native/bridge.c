@@ -35,8 +35,8 @@
  *   batch_plan(input vrs, slopes: bool, output vrs) -> (values, slopes, outputs) float64 vectors,
  *   step_batched(t, h) -> bool (obsfmuDoStepBatched: the vectors filled and read in place),
  *   log_queue: list of messages with .status, .category, .msg (drained after each call);
- *   kernel_load() -> (layout int64, memory float64) | None | False, kernel_store(), kernel_matrices(h) -> bool
- *   (the compiled step kernel of a linear block, kernel.h: see "the kernel" below);
+ *   kernel_load() -> (layout int64, memory float64) | None | False, kernel_store(), kernel_matrices(h, slot) -> bool
+ *   (the compiled step kernel of a linear block or an expression plant, kernel.h: see "the kernel" below);
  *   class attribute Refused: the exception type of refused calls.
  */
 #define PY_SSIZE_T_CLEAN
@@ -411,7 +411,6 @@ static void kernel_release(Component *c)
     k->wanted = 1;
 }
 
-/* 1 when the image is bound (taken now if the slave hands one); 0: this call goes to Python. */
 /* The compiled expressions of the image (KK_EXPRESSION) from the FMU's kernel library; 0 when found. */
 static int kernel_functions(Component *c)
 {
@@ -425,6 +424,7 @@ static int kernel_functions(Component *c)
     return k->image.f != NULL && k->image.g != NULL ? 0 : -1;
 }
 
+/* 1 when the image is bound (taken now if the slave hands one); 0: this call goes to Python. */
 static int kernel_ready(Component *c)
 {
     Kernel *k = &c->kernel;

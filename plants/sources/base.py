@@ -9,6 +9,7 @@ import numpy as np
 
 from obsfmu.observers.block import Block, Segment
 from obsfmu.observers.checks import ParameterError, as_vector
+from obsfmu.observers.kernel_forms import ExpressionForm
 
 __all__ = ["BOUNDARY_TOLERANCE", "interval_index", "scalar_parameter", "integer_parameter", "Source",
            "PiecewiseConstant"]
@@ -65,6 +66,22 @@ class Source(Block):
 
     def advance(self, t: float, h: float, inputs: Mapping[str, Segment]) -> None:
         """Nothing to integrate: the output is a function of time."""
+
+    def expression(self) -> str | None:
+        """``value(t)`` in the expression language (:mod:`observers.expressions`) of ``t`` and ``p`` =
+        :meth:`parameters`, the same operations in the same order: compiled to C when the FMU is built, the
+        compiled step kernel's output (issue 39).  None: this source steps in Python."""
+        return None
+
+    def parameters(self) -> np.ndarray:
+        """The vector ``p`` that :meth:`expression` reads."""
+        return np.zeros(0)
+
+    def kernel_form(self) -> ExpressionForm | None:
+        """The compiled kernel's form: no state, the output :meth:`expression` (None without one)."""
+        if self.expression() is None:
+            return None
+        return ExpressionForm("", 0, (), self.parameters(), (math.inf, 1.0, 1.0, 1.0), outputs=("y",))
 
 
 class PiecewiseConstant(Source):

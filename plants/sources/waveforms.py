@@ -31,6 +31,12 @@ class Constant(PiecewiseConstant):
     def value(self, t):
         return self.level + 0.0 * np.asarray(t, dtype=float)
 
+    def expression(self) -> str:
+        return "p[1] + 0 * t"
+
+    def parameters(self) -> np.ndarray:
+        return np.array([self.level])
+
 
 class Step(PiecewiseConstant):
     """``y(t) = offset + height * [t >= time]``.
@@ -52,6 +58,12 @@ class Step(PiecewiseConstant):
 
     def value(self, t):
         return self.offset + self.height * (np.asarray(t, dtype=float) >= self.time)
+
+    def expression(self) -> str:
+        return "p[1] + p[2] * (t >= p[3])"
+
+    def parameters(self) -> np.ndarray:
+        return np.array([self.offset, self.height, self.time])
 
 
 class Ramp(Source):
@@ -82,6 +94,12 @@ class Ramp(Source):
     def value(self, t):
         elapsed = np.clip(np.asarray(t, dtype=float) - self.start_time, 0.0, self.end_time - self.start_time)
         return self.offset + self.slope * elapsed
+
+    def expression(self) -> str:
+        return "p[1] + p[2] * clip(t - p[3], 0, p[4] - p[3])"
+
+    def parameters(self) -> np.ndarray:
+        return np.array([self.offset, self.slope, self.start_time, self.end_time])
 
     def derivative(self, t):
         t = np.asarray(t, dtype=float)
@@ -124,6 +142,14 @@ class MultiSine(Source):
 
     def value(self, t):
         return self.offset + np.sin(self._angles(t)) @ self.amplitudes
+
+    def expression(self) -> str:
+        k = self.amplitudes.size
+        terms = " + ".join(f"sin(t * p[{2 + k + i}] + p[{2 + 2 * k + i}]) * p[{2 + i}]" for i in range(k))
+        return f"p[1] + ({terms})"
+
+    def parameters(self) -> np.ndarray:
+        return np.concatenate([[self.offset], self.amplitudes, self.omega, self.phases])
 
     def derivative(self, t):
         return np.cos(self._angles(t)) @ (self.amplitudes * self.omega)

@@ -26,7 +26,7 @@ from ..definition import FmuDefinition, Parameter, Port, valid_identifier
 from .linear import vector_unit
 from . import register
 
-__all__ = ["expression_plant_definition", "expression_names"]
+__all__ = ["expression_plant_definition", "expression_names", "kernel_expressions"]
 
 #: parameter names of the FMU itself, never a named parameter of the expressions
 _RESERVED = {"x0", "y", "max_substep", "rtol", "atol", "sample_time", "substep_budget", "u_interpolation", "t", *VECTORS, *CONSTANTS,
@@ -38,6 +38,15 @@ def expression_names(options: Mapping) -> Names:
     names = options["parameters"]
     return Names(x=len(options["f"]), u=int(options["inputs"]), p=len(names),
                  parameters={name: i for i, name in enumerate(names, start=1)})
+
+
+def kernel_expressions(definition: FmuDefinition) -> tuple[dict[str, list[str]], Names] | None:
+    """The compiled kernel's expressions of a continuous plant (``f``, ``h``) and their names; None for a discrete
+    one (it steps in Python)."""
+    if any(p.name == "sample_time" for p in definition.parameters):
+        return None
+    options = definition.options
+    return {"f": list(options["f"]), "h": list(options["h"])}, expression_names(options)
 
 
 def _compiled(options: Mapping, prefix: str = ""):

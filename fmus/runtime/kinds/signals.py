@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from obsfmu.observers.expressions import Names
 from obsfmu.plants.signals import SampledNoise, SignalSource, Waveform
 
 from ..definition import FmuDefinition, Parameter, Port
 from . import register
 
-__all__ = ["source_definition"]
+__all__ = ["source_definition", "kernel_expressions"]
 
 
 @register("signal-source")
@@ -20,6 +21,12 @@ def _signal_source(p, options):
     if float(p["noise_std"]) != 0.0:
         noise = SampledNoise(float(p["noise_std"]), float(p["noise_dt"]), float(p["noise_seed"]))
     return SignalSource(waveform, noise)
+
+
+def kernel_expressions(definition: FmuDefinition) -> tuple[dict[str, list[str]], Names]:
+    """The compiled kernel's expressions (no state: ``f`` empty, ``h`` the waveform) and their names."""
+    sines = next(len(p.value) for p in definition.parameters if p.name == "amplitude")
+    return {"f": [], "h": [Waveform.expression(sines)]}, Names(p=1 + 3 * sines + 4)
 
 
 def source_definition(model_name: str, sines: int = 2, *, offset=0.0, amplitude=None, omega=None,

@@ -18,12 +18,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from obsfmu.observers.expressions import Names
 from obsfmu.plants.sources import PRBS, Chirp, Constant, CsvColumn, MultiSine, Ramp, Sine, Square, Step, Table
 
 from ..definition import FmuDefinition, Parameter, Port
 from . import register
 
-__all__ = ["SOURCE_KINDS", "constant_source_definition", "step_source_definition", "ramp_source_definition",
+__all__ = ["SOURCE_KINDS", "kernel_expressions", "constant_source_definition", "step_source_definition", "ramp_source_definition",
            "sine_source_definition", "multisine_source_definition", "chirp_source_definition",
            "square_source_definition", "prbs_source_definition", "table_source_definition",
            "csv_source_definition"]
@@ -44,6 +45,16 @@ def _factory(source_class):
 
 for _family, _class in SOURCE_KINDS.items():
     register(f"{_family}-source")(_factory(_class))
+
+
+def kernel_expressions(definition: FmuDefinition):
+    """The compiled kernel's expressions of a source whose output has one (``f`` empty, ``h`` its value) and their
+    names; None for the others (chirp, square, prbs, table: they step in Python)."""
+    family = definition.kind.removesuffix("-source")
+    source = SOURCE_KINDS[family](**_arguments({p.name: p.array(p.value) for p in definition.parameters},
+                                               definition.options))
+    text = source.expression()
+    return None if text is None else ({"f": [], "h": [text]}, Names(p=source.parameters().size))
 
 
 def _per_second(unit):

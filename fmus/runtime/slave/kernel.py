@@ -205,13 +205,18 @@ class Kernels:
 
 
 def kernel_source(definition) -> str | None:
-    """The C source of the FMU's kernel library (the expressions of a continuous expression plant, compiled by the
-    builder for each platform: :func:`fmus.native.kernel_library`), or None when its kernel needs none."""
-    if definition.kind != "expression-plant" or definition.kernels == "python" or \
-            any(p.name == "sample_time" for p in definition.parameters):
+    """The C source of the FMU's kernel library -- the expressions of a continuous expression plant, or of a
+    source's value -- compiled by the builder for each platform (:func:`fmus.native.kernel_library`); None when
+    its kernel needs none."""
+    from ..kinds import expression, signals, sources
+    module = {"expression-plant": expression, "signal-source": signals}.get(
+        definition.kind, sources if definition.kind.removesuffix("-source") in sources.SOURCE_KINDS else None)
+    if definition.kernels == "python" or module is None:
         return None
     from obsfmu.observers.expressions_c import c_source
 
-    from ..kinds.expression import expression_names
-    f, h = definition.options["f"], definition.options["h"]
-    return c_source(dict(zip(SYMBOLS, (f, h))), expression_names(definition.options))
+    made = module.kernel_expressions(definition)
+    if made is None:
+        return None
+    functions, names = made
+    return c_source({SYMBOLS[0]: functions["f"], SYMBOLS[1]: functions["h"]}, names)

@@ -18,6 +18,8 @@ from fmpy import extract, read_model_description
 from obsfmu.fmus.native import fmi_headers
 
 SOURCE = Path(__file__).with_name("importer.c")
+#: what an FMU logs at OK level (logging on) when an instance first steps in its compiled kernel (issue 39)
+KERNEL_NOTE = "steps run in the compiled kernel"
 
 
 def compile_importer(directory: Path) -> Path:

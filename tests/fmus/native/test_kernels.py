@@ -27,7 +27,7 @@ AGREEMENT = 1e-12
 
 
 #: what the bridge logs (logging on) when an instance first steps in C
-IN_C = "steps run in the compiled kernel"
+IN_C = "steps run in the compiled kernel"    # = native_harness.KERNEL_NOTE
 
 
 def both_paths(monkeypatch, run):
@@ -198,3 +198,54 @@ def test_expression_budget_refused_by_the_python_path(monkeypatch, expression_fm
     assert "substep_budget" in instance.messages()
     np.testing.assert_array_equal(instance.outputs(), before)
     instance.free()
+
+
+def test_signal_source_equals_python_path(monkeypatch, tmp_path):
+    """The signal source (two sines, a step at 0.13 s, a decaying exponential) steps in C -- its waveform compiled
+    to C when the FMU is built -- with the Python path's values (numpy's sin and exp against the C library's: within
+    1e-12 of the largest); with noise it steps in Python (numpy's random stream)."""
+    from obsfmu.fmus.builder import build_fmu
+    from obsfmu.fmus.runtime.kinds.signals import source_definition
+    fmus = {noise: build_fmu(source_definition(f"source_{int(noise * 10)}", sines=2, offset=0.5, amplitude=[1.0, -0.3],
+                                               omega=[2.0, 31.0], phase=[0.1, 1.0], step_time=0.13, step_height=2.0,
+                                               exp_amplitude=0.7, exp_rate=3.0, noise_std=noise), tmp_path)
+            for noise in (0.0, 0.1)}
+
+    def run(noise):
+        def steps():
+            instance = Probe(fmus[noise], "source")
+            rows = instance.run(1e-2, 50)
+            instance.free()
+            return {"y": rows, "in C": IN_C in instance.messages()}
+        return steps
+    fast, slow = both_paths(monkeypatch, run(0.0))
+    assert fast["in C"] and not slow["in C"]
+    assert_same_columns(fast, slow, ["y"])
+    assert abs(fast["y"][13, 0] - slow["y"][12, 0]) > 1.0                   # the step is in it (at t = 0.14 s)
+    noisy, reference = both_paths(monkeypatch, run(0.1))
+    assert not noisy["in C"]
+    np.testing.assert_array_equal(noisy["y"], reference["y"])
+
+
+@pytest.mark.parametrize("family, settings", [
+    ("constant", {"value": -1.5}), ("step", {"time": 0.13, "height": 2.0, "offset": 0.5}),
+    ("ramp", {"start_time": 0.1, "slope": -3.0, "offset": 1.0}),
+    ("ramp", {"start_time": 0.1, "slope": 3.0, "end_time": 0.3}),
+    ("sine", {"amplitude": 2.0, "frequency_hz": 3.0, "phase": 0.4, "offset": -1.0}),
+    ("multisine", {"amplitudes": [1.0, 0.5, 0.25], "frequencies_hz": [0.5, 7.0, 13.0], "phases": [0, 1, 2]}),
+    ("chirp", {"f0_hz": 1.0, "f1_hz": 5.0, "t1": 0.4})])
+def test_waveform_sources_equal_python_path(monkeypatch, tmp_path, family, settings):
+    """The waveform sources whose value is an expression step in C with the Python path's values; a chirp (no
+    expression yet) steps in Python."""
+    from obsfmu.fmus.builder import build_fmu
+    from obsfmu.fmus.runtime.kinds import sources
+    fmu = build_fmu(getattr(sources, f"{family}_source_definition")(f"{family}_source", **settings), tmp_path)
+
+    def run():
+        instance = Probe(fmu, "waveform")
+        rows = instance.run(1e-2, 50)
+        instance.free()
+        return {"y": rows, "in C": IN_C in instance.messages()}
+    fast, slow = both_paths(monkeypatch, run)
+    assert fast["in C"] == (family != "chirp") and not slow["in C"]
+    assert_same_columns(fast, slow, ["y"])
