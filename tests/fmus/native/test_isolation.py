@@ -56,8 +56,10 @@ def variants(tmp_path_factory):
     return str(original), built
 
 
-def test_two_code_variants_in_one_process(variants):
-    """The host imports its own fmus/plants first; each FMU, alive together or one after the other, runs its code."""
+def test_two_code_variants_in_one_process(variants, monkeypatch):
+    """The host imports its own fmus/plants first; each FMU, alive together or one after the other, runs its code
+    (its Python code: the source's steps on the Python path, not in its compiled kernel, issue 39)."""
+    monkeypatch.setenv("OBSFMU_KERNELS", "python")
     original, variant = variants
     result = python("""
         import json, sys
