@@ -1,8 +1,9 @@
 """The compiled step kernel's image of the slave: the steps of a block in C, without entering Python (issue 39).
 
 An FMU whose block has a kernel form (:mod:`observers.kernel_forms`: the continuous LTI plant, Luenberger observer,
-state feedback and integral state feedback; the continuous expression plant, whose expressions the build compiles
-to C, :func:`kernel_source`) is stepped by the native bridge in C (``fmus/native/kernel.h``):
+state feedback and integral state feedback; the continuous expression plant and the sources whose value is an
+expression, whose expressions the build compiles to C, :func:`kernel_source`) is stepped by the native bridge in C
+(``fmus/native/kernel.h``):
 ``fmi2DoStep``, ``fmi2SetReal`` of inputs, ``fmi2SetRealInputDerivatives``, ``fmi2GetReal`` of inputs, outputs
 and parameters, and the native one-call step.  Python keeps everything else -- instantiation and its checks,
 the parameters, FMU states, logging, and every step the kernel cannot vouch for (a bad input, a value beyond
