@@ -77,6 +77,24 @@ def _guarded(name: str, condition: str, otherwise: str = "NAN") -> tuple[str, tu
             (f"libm_{name}",))
 
 
+def _extreme(name: str, better: str, word: str) -> tuple[str, tuple[str, ...]]:
+    """``ex_min``/``ex_max`` of ``n`` values (``_extreme``): NaN if any is, else the first one no other is ``better``
+    than (Python's ``min``/``max`` keep the first extreme: ``min(0.0, -0.0)`` is ``0.0``)."""
+    return (f"""\
+static double ex_{name}(int n, const double *v)    /* _extreme({name}): NaN if any is, else the first {word} */
+{{
+    double best = v[0];
+    int i;
+    for (i = 0; i < n; i++)
+        if (isnan(v[i]))
+            return NAN;
+    for (i = 1; i < n; i++)
+        if (v[i] {better} best)
+            best = v[i];
+    return best;
+}}""", ())
+
+
 _PERIODIC = "isfinite(v)"                                  # _periodic, _tan
 _UNIT_INTERVAL = "(-1.0 <= v && v <= 1.0)"                 # _unit_interval
 _LOGARITHM = ("v > 0.0", "(v == 0.0 ? -INFINITY : NAN)")   # _log, _log10
@@ -132,32 +150,8 @@ static double ex_sign(double v)
 {
     return v > 0.0 ? 1.0 : v < 0.0 ? -1.0 : v == 0.0 ? 0.0 : NAN;
 }""", ()),
-    "min": ("""\
-static double ex_min(int n, const double *v)    /* _extreme(min): NaN if any is, else the first smallest */
-{
-    double best = v[0];
-    int i;
-    for (i = 0; i < n; i++)
-        if (isnan(v[i]))
-            return NAN;
-    for (i = 1; i < n; i++)
-        if (v[i] < best)
-            best = v[i];
-    return best;
-}""", ()),
-    "max": ("""\
-static double ex_max(int n, const double *v)    /* _extreme(max): NaN if any is, else the first largest */
-{
-    double best = v[0];
-    int i;
-    for (i = 0; i < n; i++)
-        if (isnan(v[i]))
-            return NAN;
-    for (i = 1; i < n; i++)
-        if (v[i] > best)
-            best = v[i];
-    return best;
-}""", ()),
+    "min": _extreme("min", "<", "smallest"),
+    "max": _extreme("max", ">", "largest"),
     "clip": ("""\
 static double ex_clip(double value, double low, double high)    /* min(max(value, low), high) */
 {

@@ -33,7 +33,7 @@ from pythonfmu import Integer, Real
 
 from obsfmu.observers.kernel_forms import AffineForm, ExpressionForm
 
-from .common import EXTRAPOLATE, INTERPOLATE
+from .common import EXTRAPOLATE, INTERPOLATE, NUMERICAL_FAULTS
 
 __all__ = ["Kernels", "KERNEL_ABI", "HEADER", "SYMBOLS", "kernel_source"]
 
@@ -154,7 +154,7 @@ class Kernels:
     def _variable_table(self, memory: np.ndarray, values: int) -> list[int]:
         """Per value reference ``0..V-1``: its class and index (input element, output element, or its value
         kept at ``memory[values + vr]``: the Real and Integer parameters, fixed while stepping)."""
-        inputs = {vr: self._input_slices[port].start + index for vr, (port, index, _) in self._input_elements.items()}
+        inputs = self._input_positions()
         table = []
         for vr in range(len(self.vars)):
             variable = self.vars.get(vr)
@@ -177,7 +177,7 @@ class Kernels:
             return False
         try:
             Phi, G0, G1 = form.step(h)
-        except (ValueError, ArithmeticError, np.linalg.LinAlgError):
+        except NUMERICAL_FAULTS:
             return False
         for name, matrix in (("Phi", Phi), ("G0", G0), ("G1", G1)):
             start = offsets[name] + slot * matrix.size

@@ -100,7 +100,7 @@ class Stepping:
         an output.
         """
         positions, offsets = [], self._output_offsets
-        flat_of = {vr: self._input_slices[port].start + index for vr, (port, index, _) in self._input_elements.items()}
+        flat_of = self._input_positions()
         for vr in input_vrs:
             if vr not in flat_of:
                 raise Refused(f"value reference {vr} is not a real input")

@@ -96,6 +96,10 @@ class Variables:
         else:
             self._bad[name] = value
 
+    def _input_positions(self) -> dict[int, int]:
+        """Real input value reference -> its element's position in the flat input vector."""
+        return {vr: self._input_slices[port].start + index for vr, (port, index, _) in self._input_elements.items()}
+
     def _variable(self, vr, kind):
         """The variable of ``vr``, of type ``kind``; :class:`Refused` otherwise."""
         variable = self.vars.get(vr)

@@ -79,6 +79,17 @@ def probe(fmu, name, kernels=None, monkeypatch=None):
     return Probe(fmu, name)
 
 
+def stepped(fmu, step, count):
+    """A run of ``fmu`` (:meth:`Probe.run`: inputs and their derivatives set every step): its outputs after each
+    step, and whether the FMU said it stepped in C."""
+    def run():
+        instance = Probe(fmu, "stepped")
+        rows = instance.run(step, count)
+        instance.free()
+        return {"rows": rows, "in C": IN_C in instance.messages()}
+    return run
+
+
 def drive(instance, first, count, step=1e-3):
     for k in range(first, first + count):
         instance.drive_inputs(k, step)
@@ -177,15 +188,10 @@ def test_expression_plant_equals_python_path(monkeypatch, expression_fmus, model
     """The Duffing plant over several RK4 sub-steps per step and less than one, the stiff plant through rejected
     sub-steps: the compiled expressions and integrator give the Python path's numbers, inputs and input derivatives
     set every step."""
-    def run():
-        instance = Probe(expression_fmus[model], "expression")
-        rows = instance.run(step, count)
-        instance.free()
-        return {"outputs": rows, "in C": IN_C in instance.messages()}
-    fast, slow = both_paths(monkeypatch, run)
+    fast, slow = both_paths(monkeypatch, stepped(expression_fmus[model], step, count))
     assert fast["in C"] and not slow["in C"]
-    assert np.all(np.isfinite(fast["outputs"]))
-    assert_same_columns(fast, slow, ["outputs"])
+    assert np.all(np.isfinite(fast["rows"]))
+    assert_same_columns(fast, slow, ["rows"])
 
 
 def test_expression_budget_refused_by_the_python_path(monkeypatch, expression_fmus):
@@ -211,20 +217,13 @@ def test_signal_source_equals_python_path(monkeypatch, tmp_path):
                                                exp_amplitude=0.7, exp_rate=3.0, noise_std=noise), tmp_path)
             for noise in (0.0, 0.1)}
 
-    def run(noise):
-        def steps():
-            instance = Probe(fmus[noise], "source")
-            rows = instance.run(1e-2, 50)
-            instance.free()
-            return {"y": rows, "in C": IN_C in instance.messages()}
-        return steps
-    fast, slow = both_paths(monkeypatch, run(0.0))
+    fast, slow = both_paths(monkeypatch, stepped(fmus[0.0], 1e-2, 50))
     assert fast["in C"] and not slow["in C"]
-    assert_same_columns(fast, slow, ["y"])
-    assert abs(fast["y"][13, 0] - slow["y"][12, 0]) > 1.0                   # the step is in it (at t = 0.14 s)
-    noisy, reference = both_paths(monkeypatch, run(0.1))
+    assert_same_columns(fast, slow, ["rows"])
+    assert abs(fast["rows"][13, 0] - slow["rows"][12, 0]) > 1.0             # the step is in it (at t = 0.14 s)
+    noisy, reference = both_paths(monkeypatch, stepped(fmus[0.1], 1e-2, 50))
     assert not noisy["in C"]
-    np.testing.assert_array_equal(noisy["y"], reference["y"])
+    np.testing.assert_array_equal(noisy["rows"], reference["rows"])
 
 
 @pytest.mark.parametrize("family, settings", [
@@ -241,11 +240,6 @@ def test_waveform_sources_equal_python_path(monkeypatch, tmp_path, family, setti
     from obsfmu.fmus.runtime.kinds import sources
     fmu = build_fmu(getattr(sources, f"{family}_source_definition")(f"{family}_source", **settings), tmp_path)
 
-    def run():
-        instance = Probe(fmu, "waveform")
-        rows = instance.run(1e-2, 50)
-        instance.free()
-        return {"y": rows, "in C": IN_C in instance.messages()}
-    fast, slow = both_paths(monkeypatch, run)
+    fast, slow = both_paths(monkeypatch, stepped(fmu, 1e-2, 50))
     assert fast["in C"] == (family != "chirp") and not slow["in C"]
-    assert_same_columns(fast, slow, ["y"])
+    assert_same_columns(fast, slow, ["rows"])
