@@ -211,17 +211,20 @@ def test_report_stopped_by_sigterm_keeps_the_rows_of_the_running_scenarios(build
         ensure_fmus(scenario, build_dir)
     out = tmp_path / "out"
     process = _start(["report", "--out", out, "--build-dir", build_dir, "--jobs", jobs])
-    running = lambda: [p.name.split(".")[1] for p in out.glob(".*.csv.*.tmp") if p.stat().st_size > 50_000]  # noqa: E731
+
+    def running():   # ship finishes in about 1 s with its compiled kernels: wait for one that is still running
+        names = [p.name.split(".")[1] for p in out.glob(".*.csv.*.tmp") if p.stat().st_size > 50_000]
+        return [name for name in names if name != "ship"]
     _wait_for(process, running, "rows")
     stopped = running()
     stdout, _ = _stopped(process, signal.SIGTERM)
-    interrupted = [name for name in stopped if f"{name}: interrupted at t = " in stdout]
+    interrupted = [name for name in SCENARIOS if f"{name}: interrupted at t = " in stdout]
     assert interrupted, stdout[-2000:]
     for name in interrupted:
         assert (out / f"{name}.partial.csv").exists()
         assert not (out / f"{name}.json").exists()                 # nothing passes for a finished run
-    for name in set(stopped) - set(interrupted):                   # finished before the signal came (ship: ~1 s
-        assert (out / f"{name}.json").exists()                     # with its compiled kernels), and complete
+    for name in set(stopped) - set(interrupted):                   # finished before the signal came: complete
+        assert (out / f"{name}.json").exists()
     assert not _hidden(out) and not (out / "report.html").exists()
 
 
