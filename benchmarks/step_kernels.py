@@ -13,7 +13,8 @@ the FMU itself costs.
 * the ship FMUs (paper 002: LTI plant, Luenberger observer, state feedback) with their kernel and with
   ``--kernels python``; an ``expression`` plant, the forced Duffing oscillator of benchmarks/expression_plant.py
   (RK4 sub-steps of at most 1e-3 s under error control, its expressions compiled to C), against VanDerPol;
-  ``ltv_ls_observer`` (paper 001), which has no kernel yet.
+  ``ltv_ls_observer`` (paper 001's example, least squares, its ``A(t)``, ``L(t)``, ``f`` compiled to C) with its
+  kernel and with ``--kernels python`` (fmusim's inputs stay 0: the same operations per step as in the scenario).
 
 And ``obsfmu run ship`` (the master, 50 000 steps of three FMUs) with and without kernels
 (``OBSFMU_KERNELS=python``), as wall time of the process.
@@ -38,6 +39,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 SHIP = ROOT / "fmus" / "scenarios" / "ship" / "system.toml"
+LTV_LS = ROOT / "fmus" / "scenarios" / "ltv_ls" / "system.toml"
 HOST = {"linux": "linux64", "darwin": "darwin64"}.get(sys.platform, "linux64")
 #: the forced Duffing oscillator of benchmarks/expression_plant.py
 DUFFING = ["x[2]", "-delta * x[2] - alpha * x[1] - beta * x[1] ** 3 + gain * u[1]"]
@@ -165,6 +167,9 @@ def main() -> None:
         subprocess.run(obsfmu + ["build", "--config", str(SHIP), "--out", str(work / "python"), "--kernels",
                                  "python"], check=True, capture_output=True)
         subprocess.run(obsfmu + ["build", "--out", str(work / "all")], check=True, capture_output=True)
+        for kernels in ("c", "python"):
+            subprocess.run(obsfmu + ["build", "--config", str(LTV_LS), "--out", str(work / f"ltv_{kernels}"),
+                                     "--kernels", kernels], check=True, capture_output=True)
         from obsfmu.fmus.builder import build_fmu
         from obsfmu.fmus.runtime.kinds.expression import expression_plant_definition
         for kernels in ("c", "python"):
@@ -189,8 +194,9 @@ def main() -> None:
         for kernels in ("c", "python"):
             measure(f"`duffing` expression plant, kernels {kernels}", work / kernels / "duffing.fmu", 1e-3,
                     args.steps if kernels == "c" else args.ltv_steps)
-        measure("`ltv_ls_observer` (Python: no kernel yet)", work / "all" / "ltv_ls_observer.fmu", 1e-3,
-                args.ltv_steps)
+        for kernels in ("c", "python"):
+            measure(f"`ltv_ls_observer`, kernels {kernels}", work / f"ltv_{kernels}" / "ltv_ls_observer.fmu", 1e-3,
+                    args.steps if kernels == "c" else args.ltv_steps)
         base = rows[0] if args.reference_fmus else None
         print("| FMU | fmusim, us/step | ratio to Dahlquist | bare C host, doStep + getReal, us | ratio |\n"
               "|---|---|---|---|---|")

@@ -374,7 +374,7 @@ def _definitions(helpers: set[str]) -> list[str]:
     return [code for name, (code, _) in _HELPERS.items() if name in needed]
 
 
-def c_source(functions: dict[str, Sequence[str]], names: Names, source: Source | None = None) -> str:
+def c_source(functions: dict[str, Sequence[str]], names: Names | dict[str, Names], source: Source | None = None) -> str:
     """One C translation unit: for each entry ``symbol -> texts`` an exported function
     ``void <symbol>(double t, const double *x, const double *u, const double *p, double *out)``
     writing ``out[i]`` = the value of ``texts[i]`` (``i = 0 .. len(texts) - 1``).
@@ -384,7 +384,8 @@ def c_source(functions: dict[str, Sequence[str]], names: Names, source: Source |
     functions
         Exported symbol (a C identifier, not starting with ``ex_``) -> its expressions, one per component.
     names
-        What the expressions may name, as for :func:`~observers.expressions.compile_vector`.
+        What the expressions may name, as for :func:`~observers.expressions.compile_vector`; or, per exported
+        symbol, its own (functions of different arguments and constants in one library).
     source
         Where the expressions come from: each vector is reported as ``<source.field>.<symbol>``, in the
         file and at the place of ``source``; by default as ``<symbol>``.
@@ -408,8 +409,9 @@ def c_source(functions: dict[str, Sequence[str]], names: Names, source: Source |
         _check_symbol(symbol)
         where = Source(symbol) if source is None else \
             Source(f"{source.field}.{symbol}", source.file, source.line, source.column)
-        compile_vector(texts, names, where)                # every refusal is the Python compiler's
-        parts.append(_function(symbol, texts, names, where, helpers))
+        own = names[symbol] if isinstance(names, dict) else names
+        compile_vector(texts, own, where)                  # every refusal is the Python compiler's
+        parts.append(_function(symbol, texts, own, where, helpers))
     definitions = _definitions(helpers)
     pointers = [code for code in definitions if code.startswith("static double (*")]
     blocks = [_HEADER.rstrip("\n"), "\n".join(pointers), *definitions[len(pointers):], *parts]

@@ -16,6 +16,9 @@ without integral action), exact over a step whose inputs are linear, ``w(t + s) 
 :class:`ExpressionForm` -- a continuous plant of expressions (:mod:`plants.expression`), ``x' = f(t, x, u, p)``,
 ``y = h(t, x, u, p)`` integrated by :func:`~observers.integrators.rk4_controlled`; ``f`` and ``h`` are compiled to
 C from the same texts (:mod:`observers.expressions_c`) when the FMU is built.
+
+:class:`PackedForm` -- a block with a C kernel of its own (``kind``; paper 001's observer,
+:mod:`observers.ltv.kernel`): its whole state packed into one vector, the kernel's settings and constants.
 """
 
 from __future__ import annotations
@@ -25,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["AffineForm", "ExpressionForm", "output_map"]
+__all__ = ["AffineForm", "ExpressionForm", "PackedForm", "output_map"]
 
 
 @dataclass(frozen=True)
@@ -53,6 +56,20 @@ class ExpressionForm:
     #: ``(max_substep, rtol, atol, substep_budget)`` of the sub-steps
     settings: tuple[float, float, float, float]
     outputs: tuple[str, str] = ("y", "x")
+
+
+@dataclass(frozen=True)
+class PackedForm:
+    """A block stepped by a C kernel of its own: its state as one vector (module docstring)."""
+
+    kind: str                       #: which kernel ("ltv")
+    size: int                       #: the length of the packed state
+    inputs: tuple[str, ...]         #: the block's input ports the kernel reads (scalars), in the kernel's order
+    outputs: tuple[str, ...]        #: the output ports, in the order the kernel writes them
+    settings: dict[str, float]      #: the kernel's settings by name (the slave adds the FMU's own)
+    parameters: np.ndarray          #: the constants the kernel reads
+    pack: Callable[[], np.ndarray]  #: the block's state as the vector
+    unpack: Callable[[np.ndarray], None]   #: the vector back into the block (a new state, rebound)
 
 
 def output_map(C, D=None, e=None, inputs: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -411,17 +411,18 @@ static void kernel_release(Component *c)
     k->wanted = 1;
 }
 
-/* The compiled expressions of the image (KK_EXPRESSION) from the FMU's kernel library; 0 when found. */
+/* The compiled expressions of the image (KK_EXPRESSION, KK_LTV) from the FMU's kernel library; 0 when found. */
 static int kernel_functions(Component *c)
 {
     Kernel *k = &c->kernel;
-    if (k->image.kind != KK_EXPRESSION) return 0;
+    if (k->image.kind == KK_AFFINE) return 0;
     if (k->library == NULL && k->path != NULL) k->library = dlopen(k->path, RTLD_NOW | RTLD_LOCAL);
     if (k->library != NULL) {
         k->image.f = (KernelFunction *)dlsym(k->library, OBSFMU_KERNEL_F);
         k->image.g = (KernelFunction *)dlsym(k->library, OBSFMU_KERNEL_G);
+        k->image.l = (KernelFunction *)dlsym(k->library, OBSFMU_KERNEL_L);
     }
-    return k->image.f != NULL && k->image.g != NULL ? 0 : -1;
+    return k->image.f != NULL && k->image.g != NULL && (k->image.kind != KK_LTV || k->image.l != NULL) ? 0 : -1;
 }
 
 /* 1 when the image is bound (taken now if the slave hands one); 0: this call goes to Python. */
@@ -457,6 +458,9 @@ static int kernel_ready(Component *c)
                 k->announced = 1;
                 log_message(c, fmi2OK, "logAll", k->image.kind == KK_AFFINE
                             ? "steps run in the compiled kernel (linear block; OBSFMU_KERNELS=python: in Python)"
+                            : k->image.kind == KK_LTV
+                            ? "steps run in the compiled kernel (paper 001's observer, its functions compiled to C; "
+                              "OBSFMU_KERNELS=python: in Python)"
                             : "steps run in the compiled kernel (expressions compiled to C; OBSFMU_KERNELS=python: "
                               "in Python)");
             }

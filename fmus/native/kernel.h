@@ -30,13 +30,14 @@
 #include <stdint.h>
 #include <string.h>
 
-#define OBSFMU_KERNEL_ABI 2 /* = fmus.runtime.slave.kernel.KERNEL_ABI */
+#define OBSFMU_KERNEL_ABI 3 /* = fmus.runtime.slave.kernel.KERNEL_ABI */
 /* The matrices of this many step sizes are kept (= fmus.runtime.slave.kernel.SLOTS): an importer that steps
  * t_(k+1) - t_k, like fmusim, gives a few step sizes one ulp apart, alternating */
 #define OBSFMU_KERNEL_SLOTS 8
 /* The exported functions of an FMU's kernel library (= fmus.runtime.slave.kernel.SYMBOLS) */
 #define OBSFMU_KERNEL_F "obsfmu_kernel_f"
 #define OBSFMU_KERNEL_G "obsfmu_kernel_g"
+#define OBSFMU_KERNEL_L "obsfmu_kernel_l"
 
 /* The layout's header, in the order of fmus.runtime.slave.kernel.HEADER */
 enum {
@@ -45,7 +46,7 @@ enum {
     KL_PHI, KL_G0, KL_G1, KL_H, KL_BOUND, KL_VALUES, KL_P, KL_SETTINGS, KL_SCRATCH, KL_SIZE, KL_HEADER
 };
 /* kinds of kernel */
-enum { KK_AFFINE = 1, KK_EXPRESSION = 2 };
+enum { KK_AFFINE = 1, KK_EXPRESSION = 2, KK_LTV = 3 };
 /* classes of a value reference (the layout's table) */
 enum { KV_PYTHON, KV_INPUT, KV_OUTPUT, KV_VALUE, KV_INTEGER };
 /* <port>_interpolation (fmus.runtime.slave.common.InputMode) */
@@ -62,10 +63,13 @@ typedef struct {
     double *time, *x, *w, *d, *previous, *previous_time, *moving, *out, *C, *D, *e, *Phi, *G0, *G1, *h, *bound,
         *values, *p, *settings, *scratch;
     const int64_t *start, *mode, *table; /* port starts (ports + 1), port modes, (class, index) per variable */
-    KernelFunction *f, *g;               /* KK_EXPRESSION: the FMU's compiled expressions (set by the bridge) */
+    KernelFunction *f, *g, *l;           /* the FMU's compiled expressions (set by the bridge): f, g of KK_EXPRESSION;
+                                            f(y, t), A(t) and L(t) of KK_LTV */
     int outputs_valid;                   /* out holds the outputs of the present x and w */
     int slot;                            /* of the matrices: the one of the last step, or the one to fill next */
 } KernelImage;
+
+#include "kernel_ltv.h" /* KK_LTV: paper 001's adaptive observer */
 
 /* The doubles each field of the image holds (KL_TIME .. KL_SCRATCH) for these sizes. */
 static size_t kernel_field_size(const KernelImage *k, int field)
@@ -85,7 +89,7 @@ static size_t kernel_field_size(const KernelImage *k, int field)
     case KL_H: return affine * OBSFMU_KERNEL_SLOTS;
     case KL_VALUES: return k->variables;
     case KL_P: return k->parameters;
-    case KL_SETTINGS: return affine ? 0 : KS_COUNT;
+    case KL_SETTINGS: return affine ? 0 : k->kind == KK_LTV ? KT_COUNT : KS_COUNT;
     case KL_SCRATCH: return n + 2 * W + m + q + 7 * n + m;
     default: return 0;
     }
@@ -96,7 +100,7 @@ static int kernel_bind(KernelImage *k, double *memory, size_t memory_size, const
 {
     memset(k, 0, sizeof *k);
     if (layout_size < KL_HEADER || layout[KL_ABI] != OBSFMU_KERNEL_ABI || layout[KL_SIZE] != (int64_t)memory_size ||
-        (layout[KL_KIND] != KK_AFFINE && layout[KL_KIND] != KK_EXPRESSION))
+        layout[KL_KIND] < KK_AFFINE || layout[KL_KIND] > KK_LTV)
         return -1;
     for (int field = KL_N; field < KL_HEADER; field++)
         if (layout[field] < 0 || layout[field] > (int64_t)memory_size) return -1;
@@ -127,6 +131,7 @@ static int kernel_bind(KernelImage *k, double *memory, size_t memory_size, const
             ((kind == KV_VALUE || kind == KV_INTEGER) && (size_t)index != i))
             return -1;
     }
+    if (k->kind == KK_LTV && !kt_fits(k)) return -1;
     return 0;
 }
 
@@ -207,18 +212,21 @@ static void kernel_product(const double *A, const double *x, size_t rows, size_t
     }
 }
 
-/* The outputs at time t of this x and w: C x + D w + e (affine); [g(t, x, w, p); x] (expression). */
-static void kernel_outputs(const KernelImage *k, double t, const double *x, const double *w, double *out)
+/* The outputs at time t of this x and w: C x + D w + e (affine); [g(t, x, w, p); x] (expression); the LTV
+ * observer's of its packed state (kt_outputs: 1 when its converged flag is held at 0 by the step, else 0). */
+static int kernel_outputs(const KernelImage *k, double t, const double *x, const double *w, double *out)
 {
+    if (k->kind == KK_LTV) return kt_outputs(k, x, out);
     if (k->kind == KK_EXPRESSION) {
         size_t q = k->q - k->n;
         k->g(t, x, w, k->p, out);
         memcpy(out + q, x, k->n * sizeof *x);
-        return;
+        return 0;
     }
     kernel_product(k->C, x, k->q, k->n, out, 0);
     kernel_product(k->D, w, k->q, k->m, out, 1);
     for (size_t i = 0; i < k->q; i++) out[i] += k->e[i];
+    return 0;
 }
 
 /* 1 when every value reference is a Real input, output or parameter: the kernel reads them. */
@@ -401,9 +409,12 @@ static int kernel_step(KernelImage *k, double t, double h)
     double *next = k->scratch, *w0 = next + k->n, *dw = w0 + k->columns, *end = dw + k->columns, *out = end + k->m;
     double *work = out + k->q;
     kernel_segments(k, t, h, w0, dw, end);
-    int taken = k->kind == KK_AFFINE ? kernel_affine(k, h, w0, dw, next) : kernel_expression(k, t, h, w0, dw, next, work);
+    int taken = k->kind == KK_AFFINE ? kernel_affine(k, h, w0, dw, next)
+                : k->kind == KK_EXPRESSION ? kernel_expression(k, t, h, w0, dw, next, work)
+                                           : kernel_ltv(k, t, h, w0, dw, next, work);
     if (taken <= 0) return taken;
-    kernel_outputs(k, t + h, next, end, out);
+    if (kernel_outputs(k, t + h, next, end, out) && next[(size_t)k->settings[KT_X_NOTED]] == 0.0)
+        return 0; /* converged held at 0 by the step for the first time: the slave says so (in Python) */
     double bound = *k->bound;
     if (!kernel_small(next, k->n, bound) || !kernel_small(out, k->q, bound) || !kernel_small(end, k->m, bound))
         return 0;

@@ -22,7 +22,7 @@ import numpy as np
 from obsfmu.observers.checks import ParameterError
 from obsfmu.observers.expressions import CONSTANTS, FUNCTIONS, Names, Source, compile_vector
 
-__all__ = ["expression_function", "is_expression_function", "compiled", "ExpressionFunction"]
+__all__ = ["expression_function", "is_expression_function", "compiled", "expression_parts", "ExpressionFunction"]
 
 _MARK = "expressions"          #: the key that tells an expression function from a reference
 _SLOTS = ("x", "u")
@@ -136,8 +136,9 @@ def _floats(argument) -> list:
     return np.atleast_1d(np.asarray(argument, dtype=float)).tolist()
 
 
-def compiled(option, what: str = "function") -> ExpressionFunction:
-    """The callable of an expression function's option (see :func:`expression_function`)."""
+def expression_parts(option, what: str = "function") -> tuple[list[str], Names, tuple[int, ...], bool, np.ndarray]:
+    """``(texts, names, shape, timed, constants)`` of an expression function's option, checked (the compiled C of a
+    step kernel is written from the texts and names, :mod:`observers.expressions_c`)."""
     if not is_expression_function(option):
         raise ParameterError(f"{what}: expected an expression function (a table with 'expressions'), got {option!r}")
     try:
@@ -149,5 +150,11 @@ def compiled(option, what: str = "function") -> ExpressionFunction:
         raise ParameterError(f"{what}: a malformed expression function ({exc})") from None
     if len(texts) != int(np.prod(shape, dtype=int)):
         raise ParameterError(f"{what}: {len(texts)} expressions for the shape {shape}")
+    return texts, names, shape, timed, np.array(list(constants.values()), dtype=float)
+
+
+def compiled(option, what: str = "function") -> ExpressionFunction:
+    """The callable of an expression function's option (see :func:`expression_function`)."""
+    texts, names, shape, timed, constants = expression_parts(option, what)
     vector = compile_vector(texts, names, Source(what))
-    return ExpressionFunction(vector, shape, timed, np.array(list(constants.values()), dtype=float))
+    return ExpressionFunction(vector, shape, timed, constants)

@@ -7,7 +7,7 @@ r"""The numerically checkable assumptions of paper 001 on ``A(t)``, ``L(t)``, ``
   frozen-time eigenvalues in the closed left half-plane on a grid of ``t`` are only *necessary*:
   they catch wrong signs and dimensions, they cannot prove uniform stability of an LTV system (the
   observer also refuses a step after which its transition matrix ``Phi`` has grown beyond
-  :data:`~observers.ltv.observer.PHI_LIMIT`).
+  :data:`~observers.ltv.stepping.PHI_LIMIT`).
 * Regression (7) identifies ``x(0)`` only if ``(A0, C^T)`` is observable: checked at every grid point
   (for ``C(t)`` the frozen-time pair ``(A0(t), C^T(t))``: a necessary check, as for ``A0``).
 """

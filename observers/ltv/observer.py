@@ -65,9 +65,10 @@ from ..estimation.exponential import phi1
 from ..integrators import DEFAULT_SUBSTEP_BUDGET, require_budget, substep_count
 from .assumptions import require_assumptions
 from .estimators import DELTA_FLOOR, ESTIMATORS, make_estimator
+from .kernel import kernel_form as packed_form
 from .model import Nonlinearities, OutputVector, gain_matrix
-from .stepping import (SUBSTEP_POINTS, IntegralSamples, PolynomialInputs, resolved_output, rk4_linear,
-                       substep_points, time_function)
+from .stepping import (PHI_LIMIT, SUBSTEP_POINTS, IntegralSamples, PolynomialInputs, resolved_output,
+                       rk4_linear, substep_points, time_function)
 
 __all__ = ["LTVAdaptiveObserver", "PARTS"]
 
@@ -76,8 +77,6 @@ PARTS = ("k", "b", "m")
 
 #: Gauss-Legendre nodes on [0, 1] of the two-point rule (equal weights 1/2)
 GAUSS_NODES = SUBSTEP_POINTS[2:]
-#: the filter transition matrix Phi growing beyond this means A0 is not stable
-PHI_LIMIT = 1e8
 
 
 class LTVAdaptiveObserver(Block):
@@ -294,6 +293,10 @@ class LTVAdaptiveObserver(Block):
         self.S, self.estimator, self.integral = S, estimator, integral
         self._memo_key, self._memo = (t + h, y.at(h), u.at(h)), end
         self.inputs = history
+
+    def kernel_form(self):
+        """The packed form of the compiled step kernel (:mod:`observers.ltv.kernel`), or None: Python steps."""
+        return packed_form(self)
 
     def _output_inside(self, t: float, h: float, count: int, y, history):
         """``y`` at :data:`SUBSTEP_POINTS` of every sub-step, and the samples of ``int f(y)`` after the step.

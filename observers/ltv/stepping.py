@@ -41,7 +41,7 @@ from ..block import MAGNITUDE_BOUND
 from ..checks import ParameterError, SignalError
 
 __all__ = ["time_function", "InputPolynomial", "PolynomialInputs", "rk4_linear",
-           "IntegralSamples", "resolved_output", "substep_points", "SUBSTEP_POINTS"]
+           "IntegralSamples", "resolved_output", "substep_points", "SUBSTEP_POINTS", "PHI_LIMIT"]
 
 
 def time_function(name: str, function: Callable, shape: tuple[int, ...]) -> Callable:
@@ -182,6 +182,9 @@ def dense_weights(th: float) -> tuple[float, float, float]:
     return (th - 1.5 * th ** 2 + 2.0 / 3.0 * th ** 3, th ** 2 - 2.0 / 3.0 * th ** 3,
             -0.5 * th ** 2 + 2.0 / 3.0 * th ** 3)
 
+
+#: the filter transition matrix Phi growing beyond this means A0 is not stable
+PHI_LIMIT = 1e8
 
 #: where a filter sub-step needs ``y`` (fractions of the sub-step): RK4's midpoint and end, then the
 #: two Gauss-Legendre nodes of the regression

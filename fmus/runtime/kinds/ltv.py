@@ -25,11 +25,11 @@ from obsfmu.plants.signals import SampledNoise
 
 from ..callables import reference, resolve
 from ..definition import FmuDefinition, Parameter, Port
-from ..functions import is_expression_function
+from ..functions import expression_parts, is_expression_function
 from . import register
 from .diagnostics import LS_CONTRACT, Contract, contract_parameters, contract_ports, contract_values
 
-__all__ = ["ltv_plant_definition", "ltv_observer_definition"]
+__all__ = ["ltv_plant_definition", "ltv_observer_definition", "kernel_expressions"]
 
 PLANT_KIND = "ltv-output-nonlinear-plant"
 OBSERVER_KIND = "ltv-adaptive-observer"
@@ -83,6 +83,18 @@ def _observer(p, options):
                                extension_rate=float(p.get("extension_rate", 1.0)), f_time=_timed(options, "f"),
                                delta_floor=float(p.get("delta_floor", DELTA_FLOOR)),
                                **least_squares, **contract, **known)
+
+
+def kernel_expressions(definition: FmuDefinition):
+    """The compiled kernel's functions of the adaptive observer (``f`` the nonlinearities, ``h`` ``A(t)``, ``l``
+    ``L(t)``) and the names of each; None when it steps in Python: a function given as a ``module:function``
+    reference, ``C(t)``, or an estimator other than least squares (observers/ltv/kernel.py)."""
+    options = definition.options
+    if definition.kind != OBSERVER_KIND or "C" in options or _estimator(options) != ESTIMATORS[0] or \
+            not all(is_expression_function(options.get(key)) for key in ("A", "L", "f")):
+        return None
+    parts = {symbol: expression_parts(options[key], key) for symbol, key in (("f", "f"), ("h", "A"), ("l", "L"))}
+    return {symbol: part[0] for symbol, part in parts.items()}, {symbol: part[1] for symbol, part in parts.items()}
 
 
 def _output(p, options: dict):

@@ -2,7 +2,9 @@
 
 An FMU whose block has a kernel form (:mod:`observers.kernel_forms`: the continuous LTI plant, Luenberger observer,
 state feedback and integral state feedback; the continuous expression plant and the sources whose value is an
-expression, whose expressions the build compiles to C, :func:`kernel_source`) is stepped by the native bridge in C
+expression, whose expressions the build compiles to C, :func:`kernel_source`; paper 001's adaptive observer with
+least squares, whose functions ``A(t)``, ``L(t)``, ``f`` the build compiles, :mod:`observers.ltv.kernel`) is stepped
+by the native bridge in C
 (``fmus/native/kernel.h``):
 ``fmi2DoStep``, ``fmi2SetReal`` of inputs, ``fmi2SetRealInputDerivatives``, ``fmi2GetReal`` of inputs, outputs
 and parameters, and the native one-call step.  Python keeps everything else -- instantiation and its checks,
@@ -31,18 +33,20 @@ from __future__ import annotations
 import numpy as np
 from pythonfmu import Integer, Real
 
-from obsfmu.observers.kernel_forms import AffineForm, ExpressionForm
+from obsfmu.observers.kernel_forms import AffineForm, ExpressionForm, PackedForm
+from obsfmu.observers.ltv.kernel import SETTINGS as LTV_SETTINGS
 
 from .common import EXTRAPOLATE, INTERPOLATE, NUMERICAL_FAULTS
 
 __all__ = ["Kernels", "KERNEL_ABI", "HEADER", "SYMBOLS", "kernel_source"]
 
 #: the version of the image's layout, checked by the bridge (= OBSFMU_KERNEL_ABI in fmus/native/kernel.h)
-KERNEL_ABI = 2
-#: the kinds of kernel (= KK_AFFINE, KK_EXPRESSION)
-AFFINE, EXPRESSION = 1, 2
-#: the functions of an FMU's kernel library: its expressions f and h (= OBSFMU_KERNEL_F, OBSFMU_KERNEL_G)
-SYMBOLS = ("obsfmu_kernel_f", "obsfmu_kernel_g")
+KERNEL_ABI = 3
+#: the kinds of kernel (= KK_AFFINE, KK_EXPRESSION, KK_LTV)
+AFFINE, EXPRESSION, LTV = 1, 2, 3
+#: the functions of an FMU's kernel library (= OBSFMU_KERNEL_F, _G, _L): an expression plant's f and h, a source's
+#: value (h), paper 001's observer's f(y, t), A(t) and L(t)
+SYMBOLS = ("obsfmu_kernel_f", "obsfmu_kernel_g", "obsfmu_kernel_l")
 #: the step sizes whose matrices the image keeps (= OBSFMU_KERNEL_SLOTS): an importer stepping t_(k+1) - t_k
 #: (fmusim) alternates between a few sizes one ulp apart
 SLOTS = 8
@@ -72,24 +76,26 @@ class Kernels:
         if not self._stepping or self._bad or self._derivatives or self._block is None:
             return None
         block = self._block
-        if set(block.get_state()) != ({form.state} if form.state else set()):   # the form must be the whole state
-            return False
+        if not isinstance(form, PackedForm) and set(block.get_state()) != ({form.state} if form.state else set()):
+            return False                                                   # the form must be the whole state
         return self._image(form, block)
 
-    def _kernel_form(self) -> AffineForm | ExpressionForm | None:
+    def _kernel_form(self) -> AffineForm | ExpressionForm | PackedForm | None:
         """The block's kernel form, or None when this FMU steps in Python."""
-        if self.definition.kernels == "python" or self._step_rate:   # asked for; or a system file's convergence
-            return None                                                  # flag, which the Python step vouches for
+        if self.definition.kernels == "python":
+            return None
         block = self._try_block()
         form = getattr(block, "kernel_form", None)
         form = form() if form is not None else None
-        if isinstance(form, ExpressionForm) and [p.name for p in self.definition.outputs] != list(form.outputs):
+        if self._step_rate and not isinstance(form, PackedForm):   # a system file's convergence flag: the packed
+            return None                                            # kernel vouches for it as the Python step does
+        if not isinstance(form, AffineForm) and [p.name for p in self.definition.outputs] != list(form.outputs):
             return None
         return form
 
-    def _image(self, form: AffineForm | ExpressionForm, block) -> tuple[np.ndarray, np.ndarray]:
-        affine = isinstance(form, AffineForm)
-        n, m = form.size, self._input_flat.size
+    def _image(self, form: AffineForm | ExpressionForm | PackedForm, block) -> tuple[np.ndarray, np.ndarray]:
+        affine, packed = isinstance(form, AffineForm), isinstance(form, PackedForm)
+        n, m = form.size + 2 * packed, self._input_flat.size     # packed: + the longest step, the step's note
         columns = m + (affine and form.constant)
         ports = self.definition.inputs
         q = sum(p.size for p in self.definition.outputs)
@@ -97,7 +103,8 @@ class Kernels:
         sizes = {"time": 1, "x": n, "w": m, "d": m, "previous": m, "previous_time": len(ports), "moving": len(ports),
                  "out": q, "C": affine * q * n, "D": affine * q * m, "e": affine * q, "Phi": affine * SLOTS * n * n,
                  "G0": affine * SLOTS * n * columns, "G1": affine * SLOTS * n * columns, "h": affine * SLOTS,
-                 "bound": 1, "values": len(self.vars), "p": parameters, "settings": 0 if affine else 4,
+                 "bound": 1, "values": len(self.vars), "p": parameters,
+                 "settings": 0 if affine else len(LTV_SETTINGS) if packed else 4,
                  "scratch": n + 2 * columns + m + q + 7 * n + m}      # = kernel_field_size in kernel.h
         offsets, total = {}, 0
         for name, size in sizes.items():
@@ -109,7 +116,10 @@ class Kernels:
             memory[offsets[name]:offsets[name] + sizes[name]] = np.ravel(values)
 
         put("time", self._time)
-        if n:
+        if packed:
+            put("x", [*form.pack(), getattr(block, "longest_step", 0.0), self._step_noted])
+            put("settings", self._packed_settings(form))
+        elif n:
             put("x", getattr(block, form.state))
         put("w", self._input_flat)
         record = self._last_inputs
@@ -123,15 +133,25 @@ class Kernels:
             put("h", np.nan)                                  # no matrices yet: the first step asks for them
         else:
             put("p", form.parameters)
+        if isinstance(form, ExpressionForm):
             put("settings", form.settings)
         put("bound", block.magnitude_bound)
-        layout = [KERNEL_ABI, AFFINE if affine else EXPRESSION, n, m, columns, q, len(ports), len(self.vars),
+        kind = AFFINE if affine else LTV if packed else EXPRESSION
+        layout = [KERNEL_ABI, kind, n, m, columns, q, len(ports), len(self.vars),
                   parameters] + [offsets[f] for f in HEADER[_FIELDS:-1]] + [total]
         starts = np.cumsum([0] + [p.size for p in ports]).tolist()
         layout += starts + [int(self._modes[p.name][0]) for p in ports]
         layout += self._variable_table(memory, offsets["values"])
         self._kernel = (form, offsets, memory)
         return np.array(layout, dtype=np.int64), memory
+
+    def _packed_settings(self, form: PackedForm) -> list[float]:
+        """The packed kernel's settings in the order of its C enum: the form's and the FMU's (the inputs' places,
+        the system's step rate, where the longest step and the step's note are)."""
+        settings = {**form.settings, "input_u": self._input_slices["u"].start, "input_y": self._input_slices["y"].start,
+                    "step_rate": self._step_rate, "x_longest": form.size, "x_noted": form.size + 1,
+                    "x_size": form.size + 2}
+        return [float(settings[name]) for name in LTV_SETTINGS]
 
     def _output_matrices(self, form: AffineForm, n: int, m: int):
         """``C, D, e`` of every output element in declaration order, ``D`` over the FMU's flat inputs."""
@@ -190,7 +210,12 @@ class Kernels:
         form, offsets, memory = self._kernel
         n, m = form.size, self._input_flat.size
         self._time = float(memory[offsets["time"]])
-        if n:
+        if isinstance(form, PackedForm):
+            x = memory[offsets["x"]:offsets["x"] + n + 2]
+            form.unpack(x[:n])
+            if self._step_rate:
+                self._block.longest_step, self._step_noted = float(x[n]), bool(x[n + 1])
+        elif n:
             setattr(self._block, form.state, memory[offsets["x"]:offsets["x"] + n].copy())
         self._input_flat[:] = memory[offsets["w"]:offsets["w"] + m]
         previous = memory[offsets["previous"]:offsets["previous"] + m]
@@ -203,14 +228,16 @@ class Kernels:
                 store[:] = memory[offsets["d"]:offsets["d"] + m][where]
         self._last_inputs, self._derivatives = record, derivatives
         self._outputs_cache, self._snapshot = None, None
+        if self._step_rate:                     # the outputs as the step left them: converged vouched for
+            self._outputs_cache = self._vouched(self._block.outputs(self._time, self._inputs), self._block)
 
 
 def kernel_source(definition) -> str | None:
     """The C source of the FMU's kernel library -- the expressions of a continuous expression plant, or of a
     source's value -- compiled by the builder for each platform (:func:`fmus.native.kernel_library`); None when
     its kernel needs none."""
-    from ..kinds import expression, signals, sources
-    module = {"expression-plant": expression, "signal-source": signals}.get(
+    from ..kinds import expression, ltv, signals, sources
+    module = {"expression-plant": expression, "signal-source": signals, ltv.OBSERVER_KIND: ltv}.get(
         definition.kind, sources if definition.kind.removesuffix("-source") in sources.SOURCE_KINDS else None)
     if definition.kernels == "python" or module is None:
         return None
@@ -220,4 +247,7 @@ def kernel_source(definition) -> str | None:
     if made is None:
         return None
     functions, names = made
-    return c_source({SYMBOLS[0]: functions["f"], SYMBOLS[1]: functions["h"]}, names)
+    symbols = dict(zip(("f", "h", "l"), SYMBOLS))
+    if isinstance(names, dict):
+        names = {symbols[key]: value for key, value in names.items()}
+    return c_source({symbols[key]: texts for key, texts in functions.items()}, names)
