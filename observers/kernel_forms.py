@@ -62,11 +62,14 @@ class ExpressionForm:
 class PackedForm:
     """A block stepped by a C kernel of its own: its state as one vector (module docstring)."""
 
-    kind: str                       #: which kernel ("ltv")
+    kind: str                       #: which kernel ("ltv-observer", "ltv-plant")
     size: int                       #: the length of the packed state
-    inputs: tuple[str, ...]         #: the block's input ports the kernel reads (scalars), in the kernel's order
+    inputs: tuple[str, ...]         #: the block's input ports the kernel reads (scalars)
     outputs: tuple[str, ...]        #: the output ports, in the order the kernel writes them
-    settings: dict[str, float]      #: the kernel's settings by name (the slave adds the FMU's own)
+    #: the kernel's settings by name, in the order of its C enum; the FMU fills ``input_<port>`` (where the port is
+    #: among the FMU's inputs), ``step_rate``, ``x_longest``, ``x_noted`` and ``x_size`` (the slave appends the
+    #: longest step and whether a held converged flag was logged to the packed state)
+    settings: dict[str, float]
     parameters: np.ndarray          #: the constants the kernel reads
     pack: Callable[[], np.ndarray]  #: the block's state as the vector
     unpack: Callable[[np.ndarray], None]   #: the vector back into the block (a new state, rebound)

@@ -33,6 +33,7 @@ import numpy as np
 from obsfmu.observers.block import Block, Segment
 from obsfmu.observers.checks import SignalError, as_vector, require_positive
 from obsfmu.observers.integrators import DEFAULT_SUBSTEP_BUDGET, require_budget, rk4_step, substep_count
+from obsfmu.observers.ltv.kernel import plant_kernel_form
 from obsfmu.observers.ltv.model import Nonlinearities, OutputVector, gain_matrix
 from obsfmu.observers.ltv.stepping import PolynomialInputs, time_function
 
@@ -131,6 +132,10 @@ class OutputNonlinearLTVPlant(Block):
         if self.noise is not None and self.noise.std:
             y = y + self.noise(t)
         return {"y": y, "x": self.x.copy(), "theta": self.theta.copy()}
+
+    def kernel_form(self):
+        """The packed form of the compiled step kernel (:func:`observers.ltv.kernel.plant_kernel_form`), or None."""
+        return plant_kernel_form(self)
 
     def advance(self, t: float, h: float, inputs: Mapping[str, Segment]) -> None:
         polynomials, history = self.inputs.step(t, h, inputs)

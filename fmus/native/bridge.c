@@ -458,8 +458,8 @@ static int kernel_ready(Component *c)
                 k->announced = 1;
                 log_message(c, fmi2OK, "logAll", k->image.kind == KK_AFFINE
                             ? "steps run in the compiled kernel (linear block; OBSFMU_KERNELS=python: in Python)"
-                            : k->image.kind == KK_LTV
-                            ? "steps run in the compiled kernel (paper 001's observer, its functions compiled to C; "
+                            : k->image.kind == KK_LTV || k->image.kind == KK_LTV_PLANT
+                            ? "steps run in the compiled kernel (paper 001's block, its functions compiled to C; "
                               "OBSFMU_KERNELS=python: in Python)"
                             : "steps run in the compiled kernel (expressions compiled to C; OBSFMU_KERNELS=python: "
                               "in Python)");

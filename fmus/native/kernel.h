@@ -46,7 +46,7 @@ enum {
     KL_PHI, KL_G0, KL_G1, KL_H, KL_BOUND, KL_VALUES, KL_P, KL_SETTINGS, KL_SCRATCH, KL_SIZE, KL_HEADER
 };
 /* kinds of kernel */
-enum { KK_AFFINE = 1, KK_EXPRESSION = 2, KK_LTV = 3 };
+enum { KK_AFFINE = 1, KK_EXPRESSION = 2, KK_LTV = 3, KK_LTV_PLANT = 4 };
 /* classes of a value reference (the layout's table) */
 enum { KV_PYTHON, KV_INPUT, KV_OUTPUT, KV_VALUE, KV_INTEGER };
 /* <port>_interpolation (fmus.runtime.slave.common.InputMode) */
@@ -69,7 +69,7 @@ typedef struct {
     int slot;                            /* of the matrices: the one of the last step, or the one to fill next */
 } KernelImage;
 
-#include "kernel_ltv.h" /* KK_LTV: paper 001's adaptive observer */
+#include "kernel_ltv.h" /* KK_LTV, KK_LTV_PLANT: paper 001's adaptive observer and plant */
 
 /* The doubles each field of the image holds (KL_TIME .. KL_SCRATCH) for these sizes. */
 static size_t kernel_field_size(const KernelImage *k, int field)
@@ -89,7 +89,7 @@ static size_t kernel_field_size(const KernelImage *k, int field)
     case KL_H: return affine * OBSFMU_KERNEL_SLOTS;
     case KL_VALUES: return k->variables;
     case KL_P: return k->parameters;
-    case KL_SETTINGS: return affine ? 0 : k->kind == KK_LTV ? KT_COUNT : KS_COUNT;
+    case KL_SETTINGS: return affine ? 0 : k->kind == KK_LTV ? KT_COUNT : k->kind == KK_LTV_PLANT ? KQ_COUNT : KS_COUNT;
     case KL_SCRATCH: return n + 2 * W + m + q + 7 * n + m;
     default: return 0;
     }
@@ -100,7 +100,7 @@ static int kernel_bind(KernelImage *k, double *memory, size_t memory_size, const
 {
     memset(k, 0, sizeof *k);
     if (layout_size < KL_HEADER || layout[KL_ABI] != OBSFMU_KERNEL_ABI || layout[KL_SIZE] != (int64_t)memory_size ||
-        layout[KL_KIND] < KK_AFFINE || layout[KL_KIND] > KK_LTV)
+        layout[KL_KIND] < KK_AFFINE || layout[KL_KIND] > KK_LTV_PLANT)
         return -1;
     for (int field = KL_N; field < KL_HEADER; field++)
         if (layout[field] < 0 || layout[field] > (int64_t)memory_size) return -1;
@@ -131,7 +131,7 @@ static int kernel_bind(KernelImage *k, double *memory, size_t memory_size, const
             ((kind == KV_VALUE || kind == KV_INTEGER) && (size_t)index != i))
             return -1;
     }
-    if (k->kind == KK_LTV && !kt_fits(k)) return -1;
+    if ((k->kind == KK_LTV && !kt_fits(k)) || (k->kind == KK_LTV_PLANT && !kq_fits(k))) return -1;
     return 0;
 }
 
@@ -217,6 +217,7 @@ static void kernel_product(const double *A, const double *x, size_t rows, size_t
 static int kernel_outputs(const KernelImage *k, double t, const double *x, const double *w, double *out)
 {
     if (k->kind == KK_LTV) return kt_outputs(k, x, out);
+    if (k->kind == KK_LTV_PLANT) return kq_outputs(k, x, out);
     if (k->kind == KK_EXPRESSION) {
         size_t q = k->q - k->n;
         k->g(t, x, w, k->p, out);
@@ -411,7 +412,8 @@ static int kernel_step(KernelImage *k, double t, double h)
     kernel_segments(k, t, h, w0, dw, end);
     int taken = k->kind == KK_AFFINE ? kernel_affine(k, h, w0, dw, next)
                 : k->kind == KK_EXPRESSION ? kernel_expression(k, t, h, w0, dw, next, work)
-                                           : kernel_ltv(k, t, h, w0, dw, next, work);
+                : k->kind == KK_LTV        ? kernel_ltv(k, t, h, w0, dw, next, work)
+                                           : kernel_ltv_plant(k, t, h, w0, dw, next, work);
     if (taken <= 0) return taken;
     if (kernel_outputs(k, t + h, next, end, out) && next[(size_t)k->settings[KT_X_NOTED]] == 0.0)
         return 0; /* converged held at 0 by the step for the first time: the slave says so (in Python) */

@@ -36,6 +36,8 @@ typedef struct {
     const KernelImage *k;
     size_t n, np, r, full, columns, d;     /* state, nonlinearities, unknowns, Theta, columns of S, input degree */
     const double *s, *C, *where, *known, *points, *dense;
+    const double *pf;                      /* the constants of f */
+    int f_time;                            /* f is f(t, y) */
     double bound;
 } Ltv;
 
@@ -180,7 +182,7 @@ static int kt_input(const Ltv *L, const double *history, double t, double h, dou
 static void kt_f(const Ltv *L, double t, double y, double *out)
 {
     double none = 0.0;
-    L->k->f(L->s[KT_F_TIME] != 0.0 ? t : 0.0, &y, &none, L->k->p + (size_t)L->s[KT_P_F], out);
+    L->k->f(L->f_time ? t : 0.0, &y, &none, L->pf, out);
 }
 
 /* IntegralSamples.at(times): I(time) - I(times[-1]) into past; 0 when unknown (a time that is not a sample) or when
@@ -420,6 +422,7 @@ static Ltv kt_of(const KernelImage *k)
     L.full = (3 + L.np) * L.n, L.columns = 1 + L.full;
     L.C = k->p + (size_t)s[KT_P_C], L.where = k->p + (size_t)s[KT_P_WHERE], L.known = k->p + (size_t)s[KT_P_KNOWN];
     L.points = k->p + (size_t)s[KT_P_POINTS], L.dense = L.points + KT_POINTS;
+    L.pf = k->p + (size_t)s[KT_P_F], L.f_time = s[KT_F_TIME] != 0.0;
     L.bound = s[KT_SIGNAL_BOUND];
     return L;
 }
@@ -607,6 +610,128 @@ static int kernel_ltv(KernelImage *k, double t, double h, const double *w0, cons
     memcpy(memo_next + 4 + n * n, Gs, nW * sizeof *Gs);
     double *longest = next + (size_t)s[KT_X_LONGEST];
     if (h > *longest) *longest = h;
+    return 1;
+}
+
+/* ------------------------------------------------------------------ KK_LTV_PLANT: paper 001's plant (plants/ltv.py)
+ *
+ * x' = A(t) x + k y + b u + sum_i m_i f_i(y, t), y = C^T x (constant C, no noise): the packed state is x and the
+ * samples of u; a step is OutputNonlinearLTVPlant.advance -- u as its polynomial, substep_count from y' at the
+ * start, integrators.rk4_step -- and the outputs y = C^T x, x, Theta. */
+
+/* The settings of an LTV plant's image (= observers.ltv.kernel.PLANT_SETTINGS) */
+enum {
+    KQ_N, KQ_P, KQ_DEGREE, KQ_F_TIME, KQ_MAX_SUBSTEP, KQ_MAX_DY, KQ_BUDGET, KQ_SIGNAL_BOUND, KQ_INPUT_U, KQ_STEP_RATE,
+    KQ_X_X, KQ_X_U, KQ_X_LONGEST, KQ_X_NOTED, KQ_X_SIZE, KQ_P_F, KQ_P_A, KQ_P_C, KQ_P_KBM, KQ_P_THETA, KQ_P_SIZE,
+    KQ_COUNT
+};
+
+static Ltv kq_of(const KernelImage *k)
+{
+    Ltv L;
+    const double *s = k->settings;
+    memset(&L, 0, sizeof L);
+    L.k = k, L.s = s;
+    L.n = (size_t)s[KQ_N], L.np = (size_t)s[KQ_P], L.d = (size_t)s[KQ_DEGREE];
+    L.full = (3 + L.np) * L.n;
+    L.C = k->p + (size_t)s[KQ_P_C], L.pf = k->p + (size_t)s[KQ_P_F], L.f_time = s[KQ_F_TIME] != 0.0;
+    L.bound = s[KQ_SIGNAL_BOUND];
+    return L;
+}
+
+/* The image fits (kernel_bind) */
+static int kq_fits(const KernelImage *k)
+{
+    if (k->settings == NULL) return 0;
+    const double *s = k->settings;
+    for (int i = 0; i < KQ_COUNT; i++)
+        if (!(s[i] >= 0.0)) return 0;
+    Ltv L = kq_of(k);
+    size_t n = L.n;
+    if (n < 1 || n > 32 || L.np < 1 || L.np > 30 || L.d < 1 || L.d > KT_MAX_DEGREE || (size_t)s[KQ_X_SIZE] != k->n ||
+        (size_t)s[KQ_X_X] + n > k->n || (size_t)s[KQ_X_U] + 2 * L.d + 3 > k->n || (size_t)s[KQ_X_NOTED] >= k->n ||
+        (size_t)s[KQ_P_SIZE] != k->parameters || (size_t)s[KQ_P_A] > k->parameters ||
+        (size_t)s[KQ_P_C] + n > k->parameters || (size_t)s[KQ_P_KBM] + n * (2 + L.np) > k->parameters ||
+        (size_t)s[KQ_P_THETA] + L.full > k->parameters || s[KQ_INPUT_U] >= (double)k->m || k->q != 1 + n + L.full)
+        return 0;
+    return 5 * n <= 7 * k->n + k->m;
+}
+
+/* plant.rate: A x + [k, b, m] (y, u, f_1(y, t), ...), y = C^T x */
+static void kq_rate(const Ltv *L, const double *A, double t, const double *x, double u, double *out)
+{
+    size_t n = L->n, columns = 2 + L->np;
+    const double *kbm = L->k->p + (size_t)L->s[KQ_P_KBM];
+    double y = 0.0, values[2 + 30];
+    for (size_t i = 0; i < n; i++) y += L->C[i] * x[i];
+    values[0] = y, values[1] = u;
+    kt_f(L, t, y, values + 2);
+    for (size_t i = 0; i < n; i++) {
+        double ax = 0.0, forced = 0.0;
+        for (size_t j = 0; j < n; j++) ax += A[i * n + j] * x[j];
+        for (size_t j = 0; j < columns; j++) forced += kbm[i * columns + j] * values[j];
+        out[i] = ax + forced;
+    }
+}
+
+static void kq_A(const Ltv *L, double t, double *A)
+{
+    double none = 0.0;
+    L->k->g(t, &none, &none, L->k->p + (size_t)L->s[KQ_P_A], A);
+}
+
+/* The plant's outputs: y = C^T x, x, Theta */
+static int kq_outputs(const KernelImage *k, const double *x, double *out)
+{
+    Ltv L = kq_of(k);
+    const double *state = x + (size_t)L.s[KQ_X_X];
+    double y = 0.0;
+    for (size_t i = 0; i < L.n; i++) y += L.C[i] * state[i];
+    out[0] = y;
+    memcpy(out + 1, state, L.n * sizeof *out);
+    memcpy(out + 1 + L.n, k->p + (size_t)L.s[KQ_P_THETA], L.full * sizeof *out);
+    return 0;
+}
+
+/* One communication step of the plant from t of size h into next; 1 taken, 0 not for the kernel */
+static int kernel_ltv_plant(KernelImage *k, double t, double h, const double *w0, const double *dw, double *next,
+                            double *work)
+{
+    Ltv L = kq_of(k);
+    const double *s = L.s, *x = k->x;
+    size_t n = L.n, iu = (size_t)s[KQ_INPUT_U];
+    memcpy(next, x, k->n * sizeof *next);
+    Poly u;
+    if (!kt_input(&L, x + (size_t)s[KQ_X_U], t, h, w0[iu], dw[iu], &u, next + (size_t)s[KQ_X_U])) return 0;
+    double A[32 * 32], *k1 = work, *k2 = k1 + n, *k3 = k2 + n, *k4 = k3 + n, *stage = k4 + n;
+    double *X = next + (size_t)s[KQ_X_X];
+    /* substep_count(h, max_substep, C^T x', max_dy, budget) */
+    kq_A(&L, t, A);
+    kq_rate(&L, A, t, X, u.c[0], k1);
+    double dy = 0.0;
+    for (size_t i = 0; i < n; i++) dy += L.C[i] * k1[i];
+    double by_length = h / s[KQ_MAX_SUBSTEP], by_change = dy != 0.0 ? fabs(dy) * h / s[KQ_MAX_DY] : 0.0;
+    double limit = s[KQ_BUDGET] * (1.0 + 1e-9);
+    if (!(by_length <= limit && by_change <= limit)) return 0;
+    double counted = fmax(ceil(by_length - 1e-9), ceil(by_change - 1e-9));
+    size_t count = counted > 1.0 ? (size_t)counted : 1;
+    double dt = h / (double)count;
+    for (size_t i = 0; i < count; i++) { /* integrators.rk4_step */
+        double at = t + (double)i * dt, end = t + (double)(i + 1) * dt, middle = at + dt / 2;
+        kq_A(&L, at, A);
+        kq_rate(&L, A, at, X, kt_at(&u, at - t), k1);
+        kq_A(&L, middle, A);
+        for (size_t j = 0; j < n; j++) stage[j] = X[j] + dt / 2 * k1[j];
+        kq_rate(&L, A, middle, stage, kt_at(&u, middle - t), k2);
+        for (size_t j = 0; j < n; j++) stage[j] = X[j] + dt / 2 * k2[j];
+        kq_rate(&L, A, middle, stage, kt_at(&u, middle - t), k3);
+        kq_A(&L, end, A);
+        for (size_t j = 0; j < n; j++) stage[j] = X[j] + dt * k3[j];
+        kq_rate(&L, A, end, stage, kt_at(&u, end - t), k4);
+        for (size_t j = 0; j < n; j++) X[j] = X[j] + dt / 6 * (k1[j] + 2 * k2[j] + 2 * k3[j] + k4[j]);
+    }
+    for (size_t j = 0; j < n; j++)
+        if (!isfinite(X[j])) return 0; /* Python names the unstable plant */
     return 1;
 }
 

@@ -1,4 +1,4 @@
-"""Paper 001's adaptive observer as a compiled step kernel's image (issue 39): its state packed into one vector.
+"""Paper 001's adaptive observer and plant as compiled step kernels' images (issue 39): the state packed into one vector.
 
 The C kernel (``fmus/native/kernel_ltv.h``) takes the same step as :meth:`LTVAdaptiveObserver.advance
 <observers.ltv.observer.LTVAdaptiveObserver.advance>` -- polynomial inputs, the sub-steps and ``f_correction``,
@@ -8,7 +8,11 @@ step -- on the vector :func:`kernel_form` packs, and computes the same outputs. 
 library), a constant ``C`` and the least-squares estimator before its gain bound is met; any other observer
 steps in Python.
 
-The packed state, in order (the offsets are settings of the image, :data:`SETTINGS`)::
+The plant (:class:`plants.ltv.OutputNonlinearLTVPlant`, :func:`plant_kernel_form`): ``A(t)`` and ``f`` compiled to
+C, a constant ``C``, no measurement noise (numpy's random stream stays in Python); its packed state is ``x`` and the
+samples of ``u`` (:data:`PLANT_SETTINGS`).
+
+The observer's packed state, in order (the offsets are settings of the image, :data:`SETTINGS`)::
 
     S (n x (1 + (3 + p) n)), Theta_hat (r), P (r x r), lambda_min(P), e^{-beta t},
     the samples of u and of y, the samples of int f(y)      (each [count, times (d + 1), values (d + 1)])
@@ -23,7 +27,7 @@ from ..block import MAGNITUDE_BOUND
 from ..kernel_forms import PackedForm
 from .stepping import PHI_LIMIT, SUBSTEP_POINTS, IntegralSamples, PolynomialInputs, dense_weights
 
-__all__ = ["SETTINGS", "kernel_form"]
+__all__ = ["SETTINGS", "PLANT_SETTINGS", "kernel_form", "plant_kernel_form"]
 
 #: the settings of the image, in the order of the C enum (KT_N .. KT_P_SIZE in fmus/native/kernel_ltv.h); the FMU
 #: slave fills input_u, input_y, step_rate, x_longest, x_noted and x_size
@@ -31,6 +35,11 @@ SETTINGS = ("n", "p", "r", "degree", "f_correction", "f_time", "max_substep", "m
             "f0", "M", "initial_error", "tolerance", "epsilon", "step_rate", "phi_limit", "signal_bound", "input_u",
             "input_y", "x_S", "x_theta", "x_P", "x_lambda", "x_decay", "x_u", "x_y", "x_integral", "x_memo",
             "x_longest", "x_noted", "x_size", "p_f", "p_A", "p_L", "p_C", "p_where", "p_known", "p_points", "p_size")
+#: the settings of the plant's image, in the order of its C enum (KQ_N .. KQ_P_SIZE); the FMU fills input_u,
+#: step_rate, x_longest, x_noted and x_size
+PLANT_SETTINGS = ("n", "p", "degree", "f_time", "max_substep", "max_dy", "budget", "signal_bound", "input_u",
+                  "step_rate", "x_x", "x_u", "x_longest", "x_noted", "x_size", "p_f", "p_A", "p_C", "p_kbm", "p_theta",
+                  "p_size")
 #: the outputs the kernel writes, in its order
 OUTPUTS = ("x_hat", "theta_hat", "k_hat", "b_hat", "m_hat", "x0_hat", "F_max", "excitation", "converged")
 #: the observer's state, all of it packed (``longest_step``: the FMU slave's, when it has a step rate)
@@ -63,15 +72,45 @@ def kernel_form(observer) -> PackedForm | None:
     blocks = {"p_f": constants[0], "p_A": constants[1], "p_L": constants[2], "p_C": observer.C.constant,
               "p_where": where, "p_known": known, "p_points": points}
     places, size = _offsets({name: len(values) for name, values in blocks.items()})
-    settings = {"n": n, "p": p, "r": r, "degree": d, "f_correction": float(observer.f_correction),
+    settings = dict.fromkeys(SETTINGS, 0.0)
+    settings |= {"n": n, "p": p, "r": r, "degree": d, "f_correction": float(observer.f_correction),
                 "f_time": float(observer.f_time), "max_substep": observer.max_substep, "max_dy": observer.max_dy,
                 "budget": float(observer.substep_budget), "gamma": estimator.gamma, "beta": estimator.beta,
                 "f0": estimator.f0, "M": estimator.M, "initial_error": observer.initial_error,
                 "tolerance": observer.converged_tolerance, "epsilon": observer.regression_error_bound,
                 "phi_limit": PHI_LIMIT, "signal_bound": MAGNITUDE_BOUND, **offsets, **places, "p_size": size}
     parameters = np.concatenate([np.ravel(np.asarray(values, dtype=float)) for values in blocks.values()])
-    return PackedForm("ltv", total, ("u", "y"), OUTPUTS, settings, parameters,
+    return PackedForm("ltv-observer", total, ("u", "y"), OUTPUTS, settings, parameters,
                       lambda: _pack(observer, n, W, d), lambda vector: _unpack(observer, vector, offsets, n, W, d))
+
+
+def plant_kernel_form(plant) -> PackedForm | None:
+    """The packed form of paper 001's plant (module docstring), or None when it steps in Python."""
+    constants = [getattr(function, "constants", None) for function in (plant.f, plant.A)]
+    noisy = plant.noise is not None and plant.noise.std
+    if plant.C.varies or noisy or any(c is None for c in constants) or set(plant.get_state()) != {"x", "inputs"} \
+            or plant.inputs.degree > 5:
+        return None
+    n, d = plant.x.size, plant.inputs.degree
+    offsets, total = _offsets({"x_x": n, "x_u": 2 * d + 3})
+    blocks = {"p_f": constants[0], "p_A": constants[1], "p_C": plant.C.constant, "p_kbm": plant._kbm,
+              "p_theta": plant.theta}
+    places, size = _offsets({name: np.size(values) for name, values in blocks.items()})
+    settings = dict.fromkeys(PLANT_SETTINGS, 0.0)
+    settings |= {"n": n, "p": plant.nonlinearities.count, "degree": d, "f_time": float(plant.f_time),
+                 "max_substep": plant.max_substep, "max_dy": plant.max_dy, "budget": float(plant.substep_budget),
+                 "signal_bound": MAGNITUDE_BOUND, **offsets, **places, "p_size": size}
+    parameters = np.concatenate([np.ravel(np.asarray(values, dtype=float)) for values in blocks.values()])
+
+    def pack() -> np.ndarray:
+        return np.concatenate([plant.x, _samples(plant.inputs.samples.get("u", (0, (), ())), d)])
+
+    def unpack(vector: np.ndarray) -> None:
+        plant.x = vector[:n].copy()
+        history = _history(vector[n:], d)
+        plant.inputs = PolynomialInputs(d, {"u": history} if history[0] else {})
+
+    return PackedForm("ltv-plant", total, ("u",), ("y", "x", "theta"), settings, parameters, pack, unpack)
 
 
 def _offsets(sizes: dict[str, int]) -> tuple[dict[str, int], int]:

@@ -240,6 +240,25 @@ class Chirp(Source):
         phi, _, t = self._phase_and_frequency(t)
         return self.offset + self.amplitude * np.sin(phi) * self._active(t)
 
+    def expression(self) -> str:
+        """:meth:`value` in the expression language, the same operations in the same order (the compiled kernel's
+        output), reading :meth:`parameters` as ``p``."""
+        tau = "clip(t - p[6], 0, p[8])"
+        if self.sweep == "linear" or self.f0 == self.f1:
+            inside = f"p[10] * (p[4] * {tau} + (p[5] - p[4]) * {tau} ^ 2 / (2 * p[8]))"
+        else:
+            inside = f"p[10] * p[4] * p[8] * (p[11] ^ ({tau} / p[8]) - 1) / p[12]"
+        phi = f"p[3] + {inside} + p[10] * p[5] * max(t - p[7], 0)"
+        return f"p[1] + p[2] * sin({phi}) * ((t >= p[6]) and ((t < p[7]) or p[9]))"
+
+    def parameters(self) -> np.ndarray:
+        """offset, amplitude, phase, f0, f1, t0, t1, T = t1 - t0, after hold (1) or stop (0), 2 pi, f1 / f0 and its
+        logarithm (1 and 0 for a linear sweep)."""
+        exponential = self.sweep == "exponential" and self.f0 != self.f1
+        ratio = self.f1 / self.f0 if exponential else 1.0
+        return np.array([self.offset, self.amplitude, self.phase, self.f0, self.f1, self.t0, self.t1, self.t1 - self.t0,
+                         float(self.after == "hold"), 2 * np.pi, ratio, math.log(ratio)])
+
     def derivative(self, t):
         phi, frequency, t = self._phase_and_frequency(t)
         return self.amplitude * 2 * np.pi * frequency * np.cos(phi) * self._active(t)

@@ -245,13 +245,15 @@ def test_a_sweep_stopped_by_sigterm_keeps_its_finished_samples(build_dir, tmp_pa
     from obsfmu.fmus.campaign.store import load_rows
     ensure_fmus(get("ltv-ls-bounded"), build_dir)
     out = tmp_path / "sweep"
-    process = _start(["sweep", "ltv-ls-bounded", "--vary", "plant.k[1]=-4:-2:10", "--stop-time", "1.5", "--workers",
+    # 100 samples of 10 s: about 10 s of work with the compiled kernels (10 samples of 1.5 s all finished before the
+    # first batch was stored)
+    process = _start(["sweep", "ltv-ls-bounded", "--vary", "plant.k[1]=-4:-2:100", "--stop-time", "10", "--workers",
                       1, "--out", out, "--build-dir", build_dir, "--no-plots"])
     _wait_for(process, lambda: list((out / "samples").glob("part-*.parquet")), "stored samples")
     _, stderr = _stopped(process, signal.SIGTERM)
     assert "interrupted: every finished sample is in" in stderr and "(SIGTERM)" in stderr
     rows = load_rows(out).to_pylist()
-    assert 0 < len(rows) < 10 and all(row["status"] == "ok" for row in rows)
+    assert 0 < len(rows) < 100 and all(row["status"] == "ok" for row in rows)
     assert not _hidden(out)
 
 

@@ -86,14 +86,16 @@ def _observer(p, options):
 
 
 def kernel_expressions(definition: FmuDefinition):
-    """The compiled kernel's functions of the adaptive observer (``f`` the nonlinearities, ``h`` ``A(t)``, ``l``
-    ``L(t)``) and the names of each; None when it steps in Python: a function given as a ``module:function``
-    reference, ``C(t)``, or an estimator other than least squares (observers/ltv/kernel.py)."""
+    """The compiled kernel's functions of the adaptive observer or the plant (``f`` the nonlinearities, ``h``
+    ``A(t)``, ``l`` the observer's ``L(t)``) and the names of each; None when it steps in Python: a function given as a
+    ``module:function`` reference, ``C(t)``, or an observer's estimator other than least squares
+    (observers/ltv/kernel.py)."""
     options = definition.options
-    if definition.kind != OBSERVER_KIND or "C" in options or _estimator(options) != ESTIMATORS[0] or \
-            not all(is_expression_function(options.get(key)) for key in ("A", "L", "f")):
+    keys = (("f", "f"), ("h", "A")) + ((("l", "L"),) if definition.kind == OBSERVER_KIND else ())
+    if "C" in options or (definition.kind == OBSERVER_KIND and _estimator(options) != ESTIMATORS[0]) or \
+            not all(is_expression_function(options.get(key)) for _, key in keys):
         return None
-    parts = {symbol: expression_parts(options[key], key) for symbol, key in (("f", "f"), ("h", "A"), ("l", "L"))}
+    parts = {symbol: expression_parts(options[key], key) for symbol, key in keys}
     return {symbol: part[0] for symbol, part in parts.items()}, {symbol: part[1] for symbol, part in parts.items()}
 
 

@@ -34,7 +34,6 @@ import numpy as np
 from pythonfmu import Integer, Real
 
 from obsfmu.observers.kernel_forms import AffineForm, ExpressionForm, PackedForm
-from obsfmu.observers.ltv.kernel import SETTINGS as LTV_SETTINGS
 
 from .common import EXTRAPOLATE, INTERPOLATE, NUMERICAL_FAULTS
 
@@ -42,10 +41,12 @@ __all__ = ["Kernels", "KERNEL_ABI", "HEADER", "SYMBOLS", "kernel_source"]
 
 #: the version of the image's layout, checked by the bridge (= OBSFMU_KERNEL_ABI in fmus/native/kernel.h)
 KERNEL_ABI = 3
-#: the kinds of kernel (= KK_AFFINE, KK_EXPRESSION, KK_LTV)
-AFFINE, EXPRESSION, LTV = 1, 2, 3
+#: the kinds of kernel (= KK_AFFINE, KK_EXPRESSION, KK_LTV, KK_LTV_PLANT)
+AFFINE, EXPRESSION, LTV, LTV_PLANT = 1, 2, 3, 4
+#: a packed form's kind -> its kernel
+PACKED = {"ltv-observer": LTV, "ltv-plant": LTV_PLANT}
 #: the functions of an FMU's kernel library (= OBSFMU_KERNEL_F, _G, _L): an expression plant's f and h, a source's
-#: value (h), paper 001's observer's f(y, t), A(t) and L(t)
+#: value (h), paper 001's observer's and plant's f(y, t), A(t) and (observer) L(t)
 SYMBOLS = ("obsfmu_kernel_f", "obsfmu_kernel_g", "obsfmu_kernel_l")
 #: the step sizes whose matrices the image keeps (= OBSFMU_KERNEL_SLOTS): an importer stepping t_(k+1) - t_k
 #: (fmusim) alternates between a few sizes one ulp apart
@@ -104,7 +105,7 @@ class Kernels:
                  "out": q, "C": affine * q * n, "D": affine * q * m, "e": affine * q, "Phi": affine * SLOTS * n * n,
                  "G0": affine * SLOTS * n * columns, "G1": affine * SLOTS * n * columns, "h": affine * SLOTS,
                  "bound": 1, "values": len(self.vars), "p": parameters,
-                 "settings": 0 if affine else len(LTV_SETTINGS) if packed else 4,
+                 "settings": 0 if affine else len(form.settings) if packed else 4,
                  "scratch": n + 2 * columns + m + q + 7 * n + m}      # = kernel_field_size in kernel.h
         offsets, total = {}, 0
         for name, size in sizes.items():
@@ -136,7 +137,7 @@ class Kernels:
         if isinstance(form, ExpressionForm):
             put("settings", form.settings)
         put("bound", block.magnitude_bound)
-        kind = AFFINE if affine else LTV if packed else EXPRESSION
+        kind = AFFINE if affine else PACKED[form.kind] if packed else EXPRESSION
         layout = [KERNEL_ABI, kind, n, m, columns, q, len(ports), len(self.vars),
                   parameters] + [offsets[f] for f in HEADER[_FIELDS:-1]] + [total]
         starts = np.cumsum([0] + [p.size for p in ports]).tolist()
@@ -146,12 +147,11 @@ class Kernels:
         return np.array(layout, dtype=np.int64), memory
 
     def _packed_settings(self, form: PackedForm) -> list[float]:
-        """The packed kernel's settings in the order of its C enum: the form's and the FMU's (the inputs' places,
-        the system's step rate, where the longest step and the step's note are)."""
-        settings = {**form.settings, "input_u": self._input_slices["u"].start, "input_y": self._input_slices["y"].start,
-                    "step_rate": self._step_rate, "x_longest": form.size, "x_noted": form.size + 1,
-                    "x_size": form.size + 2}
-        return [float(settings[name]) for name in LTV_SETTINGS]
+        """The packed kernel's settings in the order of its C enum (the form's): the form's values and the FMU's --
+        where each input is, the system's step rate, where the longest step and the step's note are."""
+        fmu = {**{f"input_{port}": self._input_slices[port].start for port in form.inputs},
+               "step_rate": self._step_rate, "x_longest": form.size, "x_noted": form.size + 1, "x_size": form.size + 2}
+        return [float(fmu.get(name, value)) for name, value in form.settings.items()]
 
     def _output_matrices(self, form: AffineForm, n: int, m: int):
         """``C, D, e`` of every output element in declaration order, ``D`` over the FMU's flat inputs."""
@@ -237,7 +237,7 @@ def kernel_source(definition) -> str | None:
     source's value -- compiled by the builder for each platform (:func:`fmus.native.kernel_library`); None when
     its kernel needs none."""
     from ..kinds import expression, ltv, signals, sources
-    module = {"expression-plant": expression, "signal-source": signals, ltv.OBSERVER_KIND: ltv}.get(
+    module = {"expression-plant": expression, "signal-source": signals, ltv.OBSERVER_KIND: ltv, ltv.PLANT_KIND: ltv}.get(
         definition.kind, sources if definition.kind.removesuffix("-source") in sources.SOURCE_KINDS else None)
     if definition.kernels == "python" or module is None:
         return None

@@ -232,70 +232,80 @@ def test_signal_source_equals_python_path(monkeypatch, tmp_path):
     ("ramp", {"start_time": 0.1, "slope": 3.0, "end_time": 0.3}),
     ("sine", {"amplitude": 2.0, "frequency_hz": 3.0, "phase": 0.4, "offset": -1.0}),
     ("multisine", {"amplitudes": [1.0, 0.5, 0.25], "frequencies_hz": [0.5, 7.0, 13.0], "phases": [0, 1, 2]}),
-    ("chirp", {"f0_hz": 1.0, "f1_hz": 5.0, "t1": 0.4})])
+    ("chirp", {"f0_hz": 1.0, "f1_hz": 5.0, "t1": 0.4}),
+    ("chirp", {"f0_hz": 1.0, "f1_hz": 20.0, "t0": 0.1, "t1": 0.3, "sweep": "exponential", "after": "stop",
+               "phase": 0.3, "offset": 0.2}),
+    ("square", {"period": 0.07})])
 def test_waveform_sources_equal_python_path(monkeypatch, tmp_path, family, settings):
-    """The waveform sources whose value is an expression step in C with the Python path's values; a chirp (no
-    expression yet) steps in Python."""
+    """The waveform sources whose value is an expression step in C with the Python path's values (the chirp with
+    both sweeps, before, during and after them); a square wave (no expression yet: the language has no floor)
+    steps in Python."""
     from obsfmu.fmus.builder import build_fmu
     from obsfmu.fmus.runtime.kinds import sources
     fmu = build_fmu(getattr(sources, f"{family}_source_definition")(f"{family}_source", **settings), tmp_path)
 
     fast, slow = both_paths(monkeypatch, stepped(fmu, 1e-2, 50))
-    assert fast["in C"] == (family != "chirp") and not slow["in C"]
+    assert fast["in C"] == (family != "square") and not slow["in C"]
     assert_same_columns(fast, slow, ["rows"])
 
 
-# ------------------------------------------------------------------ paper 001's adaptive observer (least squares)
+# ------------------------------------------------------------------ paper 001: the adaptive observer (least squares), the plant
 
-def test_ltv_settings_are_the_c_enum():
-    """The image's settings (observers/ltv/kernel.py) in the order of the C enum that reads them (kernel_ltv.h)."""
+@pytest.mark.parametrize("settings, first", [("SETTINGS", "KT_N"), ("PLANT_SETTINGS", "KQ_N")])
+def test_ltv_settings_are_the_c_enum(settings, first):
+    """The images' settings (observers/ltv/kernel.py) in the order of the C enums that read them (kernel_ltv.h)."""
     import re
 
-    from obsfmu.observers.ltv.kernel import SETTINGS
+    from obsfmu.observers.ltv import kernel
     header = (ROOT / "fmus" / "native" / "kernel_ltv.h").read_text()
-    enum = re.search(r"enum \{\s*(KT_N,.*?)KT_COUNT", header, re.S).group(1)
-    names = [name.strip().removeprefix("KT_") for name in enum.split(",") if name.strip()]
-    assert names == [name.upper() for name in SETTINGS]
+    prefix = first.split("_")[0]
+    enum = re.search(rf"enum \{{\s*({first},.*?){prefix}_COUNT", header, re.DOTALL).group(1)
+    names = [name.strip().removeprefix(f"{prefix}_") for name in enum.split(",") if name.strip()]
+    assert names == [name.upper() for name in getattr(kernel, settings)]
 
 
 @pytest.mark.parametrize("target, stop, tolerance, eigenvalue", [
     ("ltv-ls", 5.0, AGREEMENT, 1e-10),                 # f_correction, cubic inputs, the start-up ramp
     (ROOT / "examples" / "ltv_mass_spring_damper.toml", None, AGREEMENT, AGREEMENT),   # known b and m, y^3
     ("ltv-ls-bounded", 20.0, 1e-8, 1e-6)])             # weakly excited: F up to 1.06e6
-def test_ltv_observer_equals_python_path(monkeypatch, build_dir, target, stop, tolerance, eigenvalue):
-    """Paper 001's observer steps in C (polynomial inputs, RK4 filters, Gauss rows, the information-form step) with
-    the Python path's numbers.  The solve and the smallest eigenvalue of P are plain loops in C where numpy calls
-    LAPACK: both are backward stable, so they agree to round-off times the condition number of P -- 1e-12 while P is
-    well conditioned; the weakly excited case (F up to 1.06e6) to 1e-8, and lambda_min(P) (F_max, excitation),
-    which LAPACK knows to eps lambda_max(P) only, to 1e-10 and 1e-6 (measured: 1.3e-11, 1.9e-13, 2.0e-8)."""
+def test_paper_001_equals_python_path(monkeypatch, build_dir, target, stop, tolerance, eigenvalue):
+    """Paper 001's plant and observer step in C (polynomial inputs, RK4 filters, Gauss rows, the information-form
+    step) with the Python path's numbers.  The plant to 1e-12 (measured: 1.2e-15 at most).  The observer's solve and
+    the smallest eigenvalue of P are plain loops in C where numpy calls LAPACK: both are backward stable, so they
+    agree to round-off times the condition number of P -- 1e-12 while P is well conditioned, 1e-8 in the weakly
+    excited case (F up to 1.06e6); lambda_min(P) (F_max, excitation), which LAPACK knows to eps lambda_max(P) only,
+    to 1e-10 and 1e-6 (measured: 5.1e-13, 3.3e-14, 9.0e-10; 1.3e-11, 1.9e-13, 1.6e-8)."""
     fast, slow = both_paths(monkeypatch, lambda: obsfmu.run(target, stop_time=stop, build_dir=build_dir))
-    columns = [c for c in fast.columns if c.startswith("observer.")]
-    assert {"observer.theta_hat[1]", "observer.x_hat[2]", "observer.converged"} <= set(columns)
+    observer = [c for c in fast.columns if c.startswith("observer.")]
+    assert {"observer.theta_hat[1]", "observer.x_hat[2]", "observer.converged", "plant.y"} <= set(fast.columns)
     smallest = {"observer.F_max", "observer.excitation"}
-    assert_same_columns(fast, slow, [c for c in columns if c not in smallest], tolerance)
+    assert_same_columns(fast, slow, [c for c in fast.columns if c.startswith("plant.")])
+    assert_same_columns(fast, slow, [c for c in observer if c not in smallest], tolerance)
     assert_same_columns(fast, slow, smallest, eigenvalue)
     assert not np.array_equal(fast["observer.theta_hat"], slow["observer.theta_hat"])   # not the same path twice
 
 
 @pytest.fixture(scope="module")
-def ltv_observer(build_dir):
+def paper_001(build_dir):
     from obsfmu.fmus.scenarios import ensure_fmus, get
-    return ensure_fmus(get("ltv-ls"), build_dir)["ltv_ls_observer"]
+    return ensure_fmus(get("ltv-ls"), build_dir)
 
 
-def test_ltv_observer_steps_in_c_and_its_state_moves_between_paths(monkeypatch, ltv_observer):
-    """The observer FMU on its own (inputs and their derivatives set every step): it says it steps in C, and a state
+@pytest.mark.parametrize("model", ["ltv_ls_observer", "ltv_ls_plant"])
+def test_paper_001_steps_in_c_and_its_state_moves_between_paths(monkeypatch, paper_001, model):
+    """Each FMU on its own (inputs and their derivatives set every step): it says it steps in C, and a state
     serialized after 100 steps in C, continued 100 in Python and 100 in C again, equals 300 steps in C."""
-    reference = probe(ltv_observer, "reference", monkeypatch=monkeypatch)
+    fmu = paper_001[model]
+    reference = probe(fmu, "reference", monkeypatch=monkeypatch)
     drive(reference, 0, 300)
     assert IN_C in reference.messages() and "paper 001" in reference.messages()
-    path = probe(ltv_observer, "first", monkeypatch=monkeypatch)
+    path = probe(fmu, "first", monkeypatch=monkeypatch)
     drive(path, 0, 100)
     for first, kernels in ((100, "python"), (200, None)):
         state = path.slave.serializeFMUstate(path.slave.getFMUstate())
         time = path.t
         path.free()
-        path = probe(ltv_observer, f"from{first}", kernels, monkeypatch)
+        path = probe(fmu, f"from{first}", kernels, monkeypatch)
         path.slave.setFMUstate(path.slave.deSerializeFMUstate(state))
         path.t = time
         drive(path, first, 100)
@@ -304,16 +314,17 @@ def test_ltv_observer_steps_in_c_and_its_state_moves_between_paths(monkeypatch, 
     reference.free()
 
 
-def test_ltv_observer_refusals_come_from_the_python_path(monkeypatch, ltv_observer):
-    """A NaN measurement is refused in the Python path's words with the state kept, and a step beyond the sub-step
-    budget names substep_budget; good steps go on in C."""
-    instance = probe(ltv_observer, "refusals", monkeypatch=monkeypatch)
+@pytest.mark.parametrize("model, port", [("ltv_ls_observer", "y"), ("ltv_ls_plant", "u")])
+def test_paper_001_refusals_come_from_the_python_path(monkeypatch, paper_001, model, port):
+    """A NaN input is refused in the Python path's words with the state kept, and a step beyond the sub-step budget
+    names substep_budget; good steps go on in C."""
+    instance = probe(paper_001[model], "refusals", monkeypatch=monkeypatch)
     drive(instance, 0, 10)
     before = instance.outputs()
     state = instance.slave.getFMUstate()
-    assert instance.set("y", float("nan")) == OK
+    assert instance.set(port, float("nan")) == OK
     assert instance.step(1e-3) == DISCARD
-    assert "input y = nan is not finite" in instance.messages()
+    assert f"input {port} = nan is not finite" in instance.messages()
     np.testing.assert_array_equal(instance.outputs(), before)
     instance.slave.setFMUstate(state)                            # out of stepFailed (FMI 2.0), as a master does
     assert instance.step(1e3) == DISCARD                        # 1e6 sub-steps of max_substep 1e-3

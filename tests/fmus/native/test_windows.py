@@ -320,7 +320,8 @@ def expression_dual(mingw, tmp_path_factory):
 
 #: the FMUs whose blocks step in the compiled kernel (issue 39)
 KERNEL_MODELS = ("ship_plant", "ship_observer", "ship_controller", "dcmotor_plant", "dcmotor_observer",
-                 "dcmotor_controller", "designs_observer", "designs_controller", "duffing_plant")
+                 "dcmotor_controller", "designs_observer", "designs_controller", "duffing_plant", "ltv_ls_plant",
+                 "ltv_ls_observer")
 
 
 def fmpy_jobs(fmus: dict[str, Path], folder: Path, as_path) -> list[dict]:
