@@ -119,6 +119,14 @@ def _sign(value: float) -> float:
     return 1.0 if value > 0 else -1.0 if value < 0 else 0.0 if value == 0 else math.nan
 
 
+def _floor(value: float) -> float:
+    """The largest whole number not above ``value``, as C's ``floor``: inf and NaN as they are, ``-0.0`` kept."""
+    if not math.isfinite(value):
+        return value
+    whole = float(math.floor(value))
+    return math.copysign(whole, value) if whole == 0.0 else whole
+
+
 def _tan(value: float) -> float:
     return math.tan(value) if math.isfinite(value) else math.nan
 
@@ -163,7 +171,7 @@ FUNCTIONS: dict[str, tuple[int, Callable]] = {
     "asin": (1, _unit_interval(math.asin)), "acos": (1, _unit_interval(math.acos)), "atan": (1, math.atan),
     "atan2": (2, math.atan2), "sinh": (1, _growing(math.sinh)), "cosh": (1, _growing(math.cosh)),
     "tanh": (1, math.tanh), "exp": (1, _exp), "log": (1, _log), "log10": (1, _log10), "sqrt": (1, _sqrt),
-    "abs": (1, abs), "sign": (1, _sign), "min": (-2, _extreme(min)), "max": (-2, _extreme(max)),
+    "abs": (1, abs), "sign": (1, _sign), "floor": (1, _floor), "min": (-2, _extreme(min)), "max": (-2, _extreme(max)),
     "clip": (3, _clip), "where": (3, None),
 }
 

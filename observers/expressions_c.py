@@ -102,7 +102,7 @@ _LOGARITHM = ("v > 0.0", "(v == 0.0 ? -INFINITY : NAN)")   # _log, _log10
 #: the source's helpers: name -> (C definition, the helpers it uses); emitted in this order, the used ones only
 _HELPERS: dict[str, tuple[str, tuple[str, ...]]] = {
     **{f"libm_{name}": _libm(name) for name in ("sin", "cos", "tan", "asin", "acos", "atan", "sinh", "cosh",
-                                                "tanh", "exp", "log", "log10")},
+                                                "tanh", "exp", "log", "log10", "floor")},
     "libm_atan2": _libm("atan2", 2), "libm_pow": _libm("pow", 2),
     **{name: _guarded(name, _PERIODIC) for name in ("sin", "cos", "tan")},
     **{name: _guarded(name, _UNIT_INTERVAL) for name in ("asin", "acos")},
@@ -238,7 +238,8 @@ static double ex_power(double a, double b)      /* _safe(_power) */
 _CALLS = {"sin": "ex_sin", "cos": "ex_cos", "tan": "ex_tan", "asin": "ex_asin", "acos": "ex_acos",
           "atan": "ex_libm_atan", "atan2": "ex_atan2", "sinh": "ex_libm_sinh", "cosh": "ex_libm_cosh",
           "tanh": "ex_libm_tanh", "exp": "ex_libm_exp", "log": "ex_log", "log10": "ex_log10", "sqrt": "ex_sqrt",
-          "abs": "fabs", "sign": "ex_sign", "min": "ex_min", "max": "ex_max", "clip": "ex_clip"}
+          "abs": "fabs", "sign": "ex_sign", "floor": "ex_libm_floor", "min": "ex_min", "max": "ex_max",
+          "clip": "ex_clip"}
 
 _ARITHMETIC = {ast.Add: "add", ast.Sub: "subtract"}
 _SAFE = {ast.Div: "divide", ast.Mod: "remainder", ast.Pow: "power"}

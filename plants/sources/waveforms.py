@@ -292,3 +292,11 @@ class Square(PiecewiseConstant):
         cycles = np.asarray(t, dtype=float) / self.period
         fraction = cycles - np.floor(cycles + BOUNDARY_TOLERANCE)
         return self.offset + self.amplitude * np.where(fraction < self.duty - BOUNDARY_TOLERANCE, 1.0, -1.0)
+
+    def expression(self) -> str:
+        """:meth:`value` in the expression language, the same operations (the compiled kernel's output)."""
+        return "p[1] + p[2] * where(t / p[3] - floor(t / p[3] + p[5]) < p[4] - p[5], 1, -1)"
+
+    def parameters(self) -> np.ndarray:
+        """offset, amplitude, period, duty, the boundary tolerance."""
+        return np.array([self.offset, self.amplitude, self.period, self.duty, BOUNDARY_TOLERANCE])

@@ -49,7 +49,7 @@ for _family, _class in SOURCE_KINDS.items():
 
 def kernel_expressions(definition: FmuDefinition):
     """The compiled kernel's expressions of a source whose output has one (``f`` empty, ``h`` its value) and their
-    names; None for the others (square, prbs, table: they step in Python)."""
+    names; None for the others (prbs, table: they step in Python)."""
     family = definition.kind.removesuffix("-source")
     source = SOURCE_KINDS[family](**_arguments({p.name: p.array(p.value) for p in definition.parameters},
                                                definition.options))

@@ -235,17 +235,17 @@ def test_signal_source_equals_python_path(monkeypatch, tmp_path):
     ("chirp", {"f0_hz": 1.0, "f1_hz": 5.0, "t1": 0.4}),
     ("chirp", {"f0_hz": 1.0, "f1_hz": 20.0, "t0": 0.1, "t1": 0.3, "sweep": "exponential", "after": "stop",
                "phase": 0.3, "offset": 0.2}),
-    ("square", {"period": 0.07})])
+    ("square", {"period": 0.07, "duty": 0.3, "amplitude": 2.0, "offset": 0.5}), ("prbs", {"seed": 3})])
 def test_waveform_sources_equal_python_path(monkeypatch, tmp_path, family, settings):
     """The waveform sources whose value is an expression step in C with the Python path's values (the chirp with
-    both sweeps, before, during and after them); a square wave (no expression yet: the language has no floor)
-    steps in Python."""
+    both sweeps, before, during and after them; the square wave across its edges); a PRBS (its register's bits,
+    no expression) steps in Python."""
     from obsfmu.fmus.builder import build_fmu
     from obsfmu.fmus.runtime.kinds import sources
     fmu = build_fmu(getattr(sources, f"{family}_source_definition")(f"{family}_source", **settings), tmp_path)
 
     fast, slow = both_paths(monkeypatch, stepped(fmu, 1e-2, 50))
-    assert fast["in C"] == (family != "square") and not slow["in C"]
+    assert fast["in C"] == (family != "prbs") and not slow["in C"]
     assert_same_columns(fast, slow, ["rows"])
 
 
