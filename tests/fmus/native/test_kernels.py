@@ -276,6 +276,10 @@ def test_paper_001_equals_python_path(monkeypatch, build_dir, target, stop, tole
     excited case (F up to 1.06e6); lambda_min(P) (F_max, excitation), which LAPACK knows to eps lambda_max(P) only,
     to 1e-10 and 1e-6 (measured: 5.1e-13, 3.3e-14, 9.0e-10; 1.3e-11, 1.9e-13, 1.6e-8)."""
     fast, slow = both_paths(monkeypatch, lambda: obsfmu.run(target, stop_time=stop, build_dir=build_dir))
+    assert_paper_001_agrees(fast, slow, tolerance, eigenvalue)
+
+
+def assert_paper_001_agrees(fast, slow, tolerance, eigenvalue):
     observer = [c for c in fast.columns if c.startswith("observer.")]
     assert {"observer.theta_hat[1]", "observer.x_hat[2]", "observer.converged", "plant.y"} <= set(fast.columns)
     smallest = {"observer.F_max", "observer.excitation"}
@@ -283,6 +287,60 @@ def test_paper_001_equals_python_path(monkeypatch, build_dir, target, stop, tole
     assert_same_columns(fast, slow, [c for c in observer if c not in smallest], tolerance)
     assert_same_columns(fast, slow, smallest, eigenvalue)
     assert not np.array_equal(fast["observer.theta_hat"], slow["observer.theta_hat"])   # not the same path twice
+
+
+#: a stranger's plant of paper 001's class: third order, two nonlinearities (one varying in time), b known
+THIRD_ORDER = """
+name = "ltv3"
+connections = ["force.y -> plant.u", "force.y -> observer.u", "plant.y -> observer.y"]
+
+[experiment]
+stop_time = 5.0
+step = 1e-2
+master = "gauss-seidel"
+coupling = "linear"
+
+[components.force]
+kind = "multisine"
+amplitudes = [1.0, 0.5]
+frequencies_hz = [0.2, 0.7]
+
+[components.plant]
+kind = "ltv-plant"
+A = [[0, 1, 0], [0, 0, 1], [0, 0, 0]]
+C = [1, 0, 0]
+f = ["sin(y)", "y * cos(t)"]
+k = [-3, -3, -1]
+b = [0, 0, 1]
+m = [[0.1, 0.0], [0.2, -0.1], [-0.3, 0.2]]
+x0 = [0.5, -0.2, 0.1]
+input_degree = 2
+max_substep = 5e-3
+
+[components.observer]
+kind = "ltv-adaptive-observer"
+A = [[0, 1, 0], [0, 0, 1], [0, 0, 0]]
+C = [1, 0, 0]
+L = [3, 3, 1]                # A0 = A - L C^T: (s + 1)^3
+f = ["sin(y)", "y * cos(t)"]
+unknowns = "k, m"
+b = [0, 0, 1]
+gamma = 1000.0
+beta = 0.5
+f0 = 0.1
+input_degree = 2
+max_substep = 5e-3
+"""
+
+
+def test_a_third_order_plant_with_two_nonlinearities_equals_python_path(monkeypatch, build_dir, tmp_path):
+    """The kernels' sizes are the file's: n = 3, p = 2 with f(y, t), 9 unknowns with b known (measured: plant
+    1.6e-16, observer 1.9e-13, F_max 1.5e-12)."""
+    path = tmp_path / "ltv3.toml"
+    path.write_text(THIRD_ORDER)
+    fast, slow = both_paths(monkeypatch, lambda: obsfmu.run(path, build_dir=build_dir))
+    assert len([c for c in fast.columns if c.startswith("observer.theta_hat")]) == 3 + 3 + 6
+    assert_paper_001_agrees(fast, slow, AGREEMENT, 1e-10)
 
 
 @pytest.fixture(scope="module")
