@@ -421,8 +421,12 @@ static int kernel_functions(Component *c)
         k->image.f = (KernelFunction *)dlsym(k->library, OBSFMU_KERNEL_F);
         k->image.g = (KernelFunction *)dlsym(k->library, OBSFMU_KERNEL_G);
         k->image.l = (KernelFunction *)dlsym(k->library, OBSFMU_KERNEL_L);
+        k->image.c = (KernelFunction *)dlsym(k->library, OBSFMU_KERNEL_C);
     }
-    return k->image.f != NULL && k->image.g != NULL && (k->image.kind != KK_LTV || k->image.l != NULL) ? 0 : -1;
+    return k->image.f != NULL && k->image.g != NULL && (k->image.kind != KK_LTV || k->image.l != NULL) &&
+                   (!kt_c_varies(&k->image) || k->image.c != NULL)
+               ? 0
+               : -1;
 }
 
 /* 1 when the image is bound (taken now if the slave hands one); 0: this call goes to Python. */

@@ -38,6 +38,7 @@
 #define OBSFMU_KERNEL_F "obsfmu_kernel_f"
 #define OBSFMU_KERNEL_G "obsfmu_kernel_g"
 #define OBSFMU_KERNEL_L "obsfmu_kernel_l"
+#define OBSFMU_KERNEL_C "obsfmu_kernel_c"
 
 /* The layout's header, in the order of fmus.runtime.slave.kernel.HEADER */
 enum {
@@ -63,8 +64,8 @@ typedef struct {
     double *time, *x, *w, *d, *previous, *previous_time, *moving, *out, *C, *D, *e, *Phi, *G0, *G1, *h, *bound,
         *values, *p, *settings, *scratch;
     const int64_t *start, *mode, *table; /* port starts (ports + 1), port modes, (class, index) per variable */
-    KernelFunction *f, *g, *l;           /* the FMU's compiled expressions (set by the bridge): f, g of KK_EXPRESSION;
-                                            f(y, t), A(t) and L(t) of KK_LTV */
+    KernelFunction *f, *g, *l, *c;       /* the FMU's compiled expressions (set by the bridge): f, g of KK_EXPRESSION;
+                                            f(y, t), A(t), L(t) and C(t) of KK_LTV (KK_LTV_PLANT: no L) */
     int outputs_valid;                   /* out holds the outputs of the present x and w */
     int slot;                            /* of the matrices: the one of the last step, or the one to fill next */
 } KernelImage;
@@ -217,7 +218,7 @@ static void kernel_product(const double *A, const double *x, size_t rows, size_t
 static int kernel_outputs(const KernelImage *k, double t, const double *x, const double *w, double *out)
 {
     if (k->kind == KK_LTV) return kt_outputs(k, x, out);
-    if (k->kind == KK_LTV_PLANT) return kq_outputs(k, x, out);
+    if (k->kind == KK_LTV_PLANT) return kq_outputs(k, t, x, out);
     if (k->kind == KK_EXPRESSION) {
         size_t q = k->q - k->n;
         k->g(t, x, w, k->p, out);

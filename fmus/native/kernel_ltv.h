@@ -22,7 +22,7 @@
 
 /* The settings of an LTV image (= observers.ltv.kernel.SETTINGS) */
 enum {
-    KT_N, KT_P, KT_R, KT_DEGREE, KT_F_CORRECTION, KT_F_TIME, KT_MAX_SUBSTEP, KT_MAX_DY, KT_BUDGET, KT_GAMMA, KT_BETA,
+    KT_N, KT_P, KT_R, KT_DEGREE, KT_F_CORRECTION, KT_F_TIME, KT_C_VARIES, KT_MAX_SUBSTEP, KT_MAX_DY, KT_BUDGET, KT_GAMMA, KT_BETA,
     KT_F0, KT_M, KT_INITIAL_ERROR, KT_TOLERANCE, KT_EPSILON, KT_STEP_RATE, KT_PHI_LIMIT, KT_SIGNAL_BOUND, KT_INPUT_U,
     KT_INPUT_Y, KT_X_S, KT_X_THETA, KT_X_P, KT_X_LAMBDA, KT_X_DECAY, KT_X_U, KT_X_Y, KT_X_INTEGRAL, KT_X_MEMO,
     KT_X_LONGEST, KT_X_NOTED, KT_X_SIZE, KT_P_F, KT_P_A, KT_P_L, KT_P_C, KT_P_WHERE, KT_P_KNOWN, KT_P_POINTS,
@@ -37,7 +37,7 @@ typedef struct {
     size_t n, np, r, full, columns, d;     /* state, nonlinearities, unknowns, Theta, columns of S, input degree */
     const double *s, *C, *where, *known, *points, *dense;
     const double *pf;                      /* the constants of f */
-    int f_time;                            /* f is f(t, y) */
+    int f_time, c_varies;                  /* f is f(t, y); C is C(t) (C: the constants of its function) */
     double bound;
 } Ltv;
 
@@ -185,6 +185,15 @@ static void kt_f(const Ltv *L, double t, double y, double *out)
     L->k->f(L->f_time ? t : 0.0, &y, &none, L->pf, out);
 }
 
+/* C(t) of y = C^T(t) x (model.OutputVector.at): the constant, or its compiled function at t into buffer */
+static const double *kt_output_vector(const Ltv *L, double t, double *buffer)
+{
+    double none = 0.0;
+    if (!L->c_varies) return L->C;
+    L->k->c(t, &none, &none, L->C, buffer);
+    return buffer;
+}
+
 /* IntegralSamples.at(times): I(time) - I(times[-1]) into past; 0 when unknown (a time that is not a sample) or when
  * Python's 12-decimal keys cannot be told from here (a time within 2e-12 of a sample but not equal to it). */
 static int kt_integral_at(const Ltv *L, const double *integral, const double *times, size_t count, double *past)
@@ -320,12 +329,12 @@ static int kt_resolve(const Ltv *L, const double *state, const double *y_after, 
 static void kt_evaluate(const Ltv *L, double t, double y, double u, double *A0, double *G)
 {
     size_t n = L->n, W = L->columns;
-    double gain[64], none = 0.0, values[2 + 32];
-    const double *p = L->k->p;
+    double gain[64], none = 0.0, values[2 + 32], buffer[32];
+    const double *p = L->k->p, *C = kt_output_vector(L, t, buffer);
     L->k->g(t, &none, &none, p + (size_t)L->s[KT_P_A], A0);
     L->k->l(t, &none, &none, p + (size_t)L->s[KT_P_L], gain);
     for (size_t i = 0; i < n; i++)
-        for (size_t j = 0; j < n; j++) A0[i * n + j] -= gain[i] * L->C[j];
+        for (size_t j = 0; j < n; j++) A0[i * n + j] -= gain[i] * C[j];
     values[0] = y, values[1] = u;
     kt_f(L, t, y, values + 2);
     memset(G, 0, n * W * sizeof *G);
@@ -422,7 +431,7 @@ static Ltv kt_of(const KernelImage *k)
     L.full = (3 + L.np) * L.n, L.columns = 1 + L.full;
     L.C = k->p + (size_t)s[KT_P_C], L.where = k->p + (size_t)s[KT_P_WHERE], L.known = k->p + (size_t)s[KT_P_KNOWN];
     L.points = k->p + (size_t)s[KT_P_POINTS], L.dense = L.points + KT_POINTS;
-    L.pf = k->p + (size_t)s[KT_P_F], L.f_time = s[KT_F_TIME] != 0.0;
+    L.pf = k->p + (size_t)s[KT_P_F], L.f_time = s[KT_F_TIME] != 0.0, L.c_varies = s[KT_C_VARIES] != 0.0;
     L.bound = s[KT_SIGNAL_BOUND];
     return L;
 }
@@ -555,10 +564,11 @@ static int kernel_ltv(KernelImage *k, double t, double h, const double *w0, cons
         for (int g = 2; g < KT_POINTS; g++) { /* the regression (7) at the Gauss nodes, weighted */
             const double *b = L.dense + 3 * g;
             for (size_t j = 0; j < nW; j++) node[j] = S[j] + dt * (b[0] * k1[j] + b[1] * (k2[j] + k3[j]) + b[2] * k4[j]);
-            double z = points[g], known = 0.0, residual;
+            double z = points[g], known = 0.0, residual, buffer[32];
+            const double *C = kt_output_vector(&L, t + ((double)i + L.points[g]) * dt, buffer);
             for (size_t j = 0; j < W; j++) {
                 double sum = 0.0;
-                for (size_t l = 0; l < n; l++) sum += L.C[l] * node[l * W + j];
+                for (size_t l = 0; l < n; l++) sum += C[l] * node[l * W + j];
                 if (j == 0) z -= sum;
                 else row[j - 1] = sum;
             }
@@ -621,7 +631,7 @@ static int kernel_ltv(KernelImage *k, double t, double h, const double *w0, cons
 
 /* The settings of an LTV plant's image (= observers.ltv.kernel.PLANT_SETTINGS) */
 enum {
-    KQ_N, KQ_P, KQ_DEGREE, KQ_F_TIME, KQ_MAX_SUBSTEP, KQ_MAX_DY, KQ_BUDGET, KQ_SIGNAL_BOUND, KQ_INPUT_U, KQ_STEP_RATE,
+    KQ_N, KQ_P, KQ_DEGREE, KQ_F_TIME, KQ_C_VARIES, KQ_MAX_SUBSTEP, KQ_MAX_DY, KQ_BUDGET, KQ_SIGNAL_BOUND, KQ_INPUT_U, KQ_STEP_RATE,
     KQ_X_X, KQ_X_U, KQ_X_LONGEST, KQ_X_NOTED, KQ_X_SIZE, KQ_P_F, KQ_P_A, KQ_P_C, KQ_P_KBM, KQ_P_THETA, KQ_P_SIZE,
     KQ_COUNT
 };
@@ -635,6 +645,7 @@ static Ltv kq_of(const KernelImage *k)
     L.n = (size_t)s[KQ_N], L.np = (size_t)s[KQ_P], L.d = (size_t)s[KQ_DEGREE];
     L.full = (3 + L.np) * L.n;
     L.C = k->p + (size_t)s[KQ_P_C], L.pf = k->p + (size_t)s[KQ_P_F], L.f_time = s[KQ_F_TIME] != 0.0;
+    L.c_varies = s[KQ_C_VARIES] != 0.0;
     L.bound = s[KQ_SIGNAL_BOUND];
     return L;
 }
@@ -651,7 +662,7 @@ static int kq_fits(const KernelImage *k)
     if (n < 1 || n > 32 || L.np < 1 || L.np > 30 || L.d < 1 || L.d > KT_MAX_DEGREE || (size_t)s[KQ_X_SIZE] != k->n ||
         (size_t)s[KQ_X_X] + n > k->n || (size_t)s[KQ_X_U] + 2 * L.d + 3 > k->n || (size_t)s[KQ_X_NOTED] >= k->n ||
         (size_t)s[KQ_P_SIZE] != k->parameters || (size_t)s[KQ_P_A] > k->parameters ||
-        (size_t)s[KQ_P_C] + n > k->parameters || (size_t)s[KQ_P_KBM] + n * (2 + L.np) > k->parameters ||
+        (size_t)s[KQ_P_C] + (L.c_varies ? 0 : n) > k->parameters || (size_t)s[KQ_P_KBM] + n * (2 + L.np) > k->parameters ||
         (size_t)s[KQ_P_THETA] + L.full > k->parameters || s[KQ_INPUT_U] >= (double)k->m || k->q != 1 + n + L.full)
         return 0;
     return 5 * n <= 7 * k->n + k->m;
@@ -662,8 +673,9 @@ static void kq_rate(const Ltv *L, const double *A, double t, const double *x, do
 {
     size_t n = L->n, columns = 2 + L->np;
     const double *kbm = L->k->p + (size_t)L->s[KQ_P_KBM];
-    double y = 0.0, values[2 + 30];
-    for (size_t i = 0; i < n; i++) y += L->C[i] * x[i];
+    double y = 0.0, values[2 + 30], buffer[32];
+    const double *C = kt_output_vector(L, t, buffer);
+    for (size_t i = 0; i < n; i++) y += C[i] * x[i];
     values[0] = y, values[1] = u;
     kt_f(L, t, y, values + 2);
     for (size_t i = 0; i < n; i++) {
@@ -681,12 +693,12 @@ static void kq_A(const Ltv *L, double t, double *A)
 }
 
 /* The plant's outputs: y = C^T x, x, Theta */
-static int kq_outputs(const KernelImage *k, const double *x, double *out)
+static int kq_outputs(const KernelImage *k, double t, const double *x, double *out)
 {
     Ltv L = kq_of(k);
-    const double *state = x + (size_t)L.s[KQ_X_X];
-    double y = 0.0;
-    for (size_t i = 0; i < L.n; i++) y += L.C[i] * state[i];
+    double y = 0.0, buffer[32];
+    const double *state = x + (size_t)L.s[KQ_X_X], *C = kt_output_vector(&L, t, buffer);
+    for (size_t i = 0; i < L.n; i++) y += C[i] * state[i];
     out[0] = y;
     memcpy(out + 1, state, L.n * sizeof *out);
     memcpy(out + 1 + L.n, k->p + (size_t)L.s[KQ_P_THETA], L.full * sizeof *out);
@@ -708,8 +720,9 @@ static int kernel_ltv_plant(KernelImage *k, double t, double h, const double *w0
     /* substep_count(h, max_substep, C^T x', max_dy, budget) */
     kq_A(&L, t, A);
     kq_rate(&L, A, t, X, u.c[0], k1);
-    double dy = 0.0;
-    for (size_t i = 0; i < n; i++) dy += L.C[i] * k1[i];
+    double dy = 0.0, buffer[32];
+    const double *C = kt_output_vector(&L, t, buffer);
+    for (size_t i = 0; i < n; i++) dy += C[i] * k1[i];
     double by_length = h / s[KQ_MAX_SUBSTEP], by_change = dy != 0.0 ? fabs(dy) * h / s[KQ_MAX_DY] : 0.0;
     double limit = s[KQ_BUDGET] * (1.0 + 1e-9);
     if (!(by_length <= limit && by_change <= limit)) return 0;
@@ -733,6 +746,13 @@ static int kernel_ltv_plant(KernelImage *k, double t, double h, const double *w0
     for (size_t j = 0; j < n; j++)
         if (!isfinite(X[j])) return 0; /* Python names the unstable plant */
     return 1;
+}
+
+/* The image's C is a function of time (its kernel library must hold it) */
+static int kt_c_varies(const KernelImage *k)
+{
+    return (k->kind == KK_LTV && k->settings[KT_C_VARIES] != 0.0) ||
+           (k->kind == KK_LTV_PLANT && k->settings[KQ_C_VARIES] != 0.0);
 }
 
 #endif

@@ -5,11 +5,11 @@ The C kernel (``fmus/native/kernel_ltv.h``) takes the same step as :meth:`LTVAda
 RK4 filters with their dense output, the weighted regression at the Gauss nodes, the least-squares information
 step -- on the vector :func:`kernel_form` packs, and computes the same outputs.  It needs the model's functions
 ``A(t)``, ``L(t)``, ``f(y, t)`` compiled to C (expression functions: the build writes them into the FMU's kernel
-library), a constant ``C`` and the least-squares estimator before its gain bound is met; any other observer
-steps in Python.
+library; ``C`` constant or ``C(t)`` written as expressions too) and the least-squares estimator before its gain
+bound is met; any other observer steps in Python.
 
-The plant (:class:`plants.ltv.OutputNonlinearLTVPlant`, :func:`plant_kernel_form`): ``A(t)`` and ``f`` compiled to
-C, a constant ``C``, no measurement noise (numpy's random stream stays in Python); its packed state is ``x`` and the
+The plant (:class:`plants.ltv.OutputNonlinearLTVPlant`, :func:`plant_kernel_form`): ``A(t)``, ``f`` (and ``C(t)``)
+compiled to C, no measurement noise (numpy's random stream stays in Python); its packed state is ``x`` and the
 samples of ``u`` (:data:`PLANT_SETTINGS`).
 
 The observer's packed state, in order (the offsets are settings of the image, :data:`SETTINGS`)::
@@ -31,13 +31,13 @@ __all__ = ["SETTINGS", "PLANT_SETTINGS", "kernel_form", "plant_kernel_form"]
 
 #: the settings of the image, in the order of the C enum (KT_N .. KT_P_SIZE in fmus/native/kernel_ltv.h); the FMU
 #: slave fills input_u, input_y, step_rate, x_longest, x_noted and x_size
-SETTINGS = ("n", "p", "r", "degree", "f_correction", "f_time", "max_substep", "max_dy", "budget", "gamma", "beta",
+SETTINGS = ("n", "p", "r", "degree", "f_correction", "f_time", "c_varies", "max_substep", "max_dy", "budget", "gamma", "beta",
             "f0", "M", "initial_error", "tolerance", "epsilon", "step_rate", "phi_limit", "signal_bound", "input_u",
             "input_y", "x_S", "x_theta", "x_P", "x_lambda", "x_decay", "x_u", "x_y", "x_integral", "x_memo",
             "x_longest", "x_noted", "x_size", "p_f", "p_A", "p_L", "p_C", "p_where", "p_known", "p_points", "p_size")
 #: the settings of the plant's image, in the order of its C enum (KQ_N .. KQ_P_SIZE); the FMU fills input_u,
 #: step_rate, x_longest, x_noted and x_size
-PLANT_SETTINGS = ("n", "p", "degree", "f_time", "max_substep", "max_dy", "budget", "signal_bound", "input_u",
+PLANT_SETTINGS = ("n", "p", "degree", "f_time", "c_varies", "max_substep", "max_dy", "budget", "signal_bound", "input_u",
                   "step_rate", "x_x", "x_u", "x_longest", "x_noted", "x_size", "p_f", "p_A", "p_C", "p_kbm", "p_theta",
                   "p_size")
 #: the outputs the kernel writes, in its order
@@ -51,7 +51,8 @@ def kernel_form(observer) -> PackedForm | None:
     steps in Python (module docstring)."""
     estimator = observer.estimator
     constants = [getattr(function, "constants", None) for function in (observer.f, observer.A, observer.L)]
-    if not observer.least_squares or observer.C.varies or estimator.frozen or any(c is None for c in constants) \
+    output = _output_vector(observer.C)
+    if not observer.least_squares or output is None or estimator.frozen or any(c is None for c in constants) \
             or set(observer.get_state()) - {"longest_step"} != _STATE or observer.inputs.degree > 5:
         return None
     n, p, r, d = observer.n, observer.p, estimator.p, observer.inputs.degree
@@ -69,12 +70,12 @@ def kernel_form(observer) -> PackedForm | None:
         where[observer._columns] = np.arange(r)
         known[observer._known_columns] = observer._known
     points = [*SUBSTEP_POINTS, *(w for point in SUBSTEP_POINTS for w in dense_weights(point))]
-    blocks = {"p_f": constants[0], "p_A": constants[1], "p_L": constants[2], "p_C": observer.C.constant,
+    blocks = {"p_f": constants[0], "p_A": constants[1], "p_L": constants[2], "p_C": output,
               "p_where": where, "p_known": known, "p_points": points}
     places, size = _offsets({name: len(values) for name, values in blocks.items()})
     settings = dict.fromkeys(SETTINGS, 0.0)
     settings |= {"n": n, "p": p, "r": r, "degree": d, "f_correction": float(observer.f_correction),
-                "f_time": float(observer.f_time), "max_substep": observer.max_substep, "max_dy": observer.max_dy,
+                "f_time": float(observer.f_time), "c_varies": float(observer.C.varies), "max_substep": observer.max_substep, "max_dy": observer.max_dy,
                 "budget": float(observer.substep_budget), "gamma": estimator.gamma, "beta": estimator.beta,
                 "f0": estimator.f0, "M": estimator.M, "initial_error": observer.initial_error,
                 "tolerance": observer.converged_tolerance, "epsilon": observer.regression_error_bound,
@@ -88,16 +89,18 @@ def plant_kernel_form(plant) -> PackedForm | None:
     """The packed form of paper 001's plant (module docstring), or None when it steps in Python."""
     constants = [getattr(function, "constants", None) for function in (plant.f, plant.A)]
     noisy = plant.noise is not None and plant.noise.std
-    if plant.C.varies or noisy or any(c is None for c in constants) or set(plant.get_state()) != {"x", "inputs"} \
+    output = _output_vector(plant.C)
+    if output is None or noisy or any(c is None for c in constants) or set(plant.get_state()) != {"x", "inputs"} \
             or plant.inputs.degree > 5:
         return None
     n, d = plant.x.size, plant.inputs.degree
     offsets, total = _offsets({"x_x": n, "x_u": 2 * d + 3})
-    blocks = {"p_f": constants[0], "p_A": constants[1], "p_C": plant.C.constant, "p_kbm": plant._kbm,
+    blocks = {"p_f": constants[0], "p_A": constants[1], "p_C": output, "p_kbm": plant._kbm,
               "p_theta": plant.theta}
     places, size = _offsets({name: np.size(values) for name, values in blocks.items()})
     settings = dict.fromkeys(PLANT_SETTINGS, 0.0)
     settings |= {"n": n, "p": plant.nonlinearities.count, "degree": d, "f_time": float(plant.f_time),
+                 "c_varies": float(plant.C.varies),
                  "max_substep": plant.max_substep, "max_dy": plant.max_dy, "budget": float(plant.substep_budget),
                  "signal_bound": MAGNITUDE_BOUND, **offsets, **places, "p_size": size}
     parameters = np.concatenate([np.ravel(np.asarray(values, dtype=float)) for values in blocks.values()])
@@ -111,6 +114,15 @@ def plant_kernel_form(plant) -> PackedForm | None:
         plant.inputs = PolynomialInputs(d, {"u": history} if history[0] else {})
 
     return PackedForm("ltv-plant", total, ("u",), ("y", "x", "theta"), settings, parameters, pack, unpack)
+
+
+def _output_vector(C) -> np.ndarray | None:
+    """What the kernel reads of ``C``: the constant vector, or the constants of ``C(t)``'s compiled function; None
+    when ``C(t)`` is a Python function (no kernel)."""
+    if not C.varies:
+        return C.constant
+    constants = getattr(C.function, "constants", None)
+    return None if constants is None else np.asarray(constants, dtype=float)
 
 
 def _offsets(sizes: dict[str, int]) -> tuple[dict[str, int], int]:

@@ -87,12 +87,13 @@ def _observer(p, options):
 
 def kernel_expressions(definition: FmuDefinition):
     """The compiled kernel's functions of the adaptive observer or the plant (``f`` the nonlinearities, ``h``
-    ``A(t)``, ``l`` the observer's ``L(t)``) and the names of each; None when it steps in Python: a function given as a
-    ``module:function`` reference, ``C(t)``, or an observer's estimator other than least squares
+    ``A(t)``, ``l`` the observer's ``L(t)``, ``c`` a ``C(t)``) and the names of each; None when it steps in Python: a
+    function given as a ``module:function`` reference, or an observer's estimator other than least squares
     (observers/ltv/kernel.py)."""
     options = definition.options
-    keys = (("f", "f"), ("h", "A")) + ((("l", "L"),) if definition.kind == OBSERVER_KIND else ())
-    if "C" in options or (definition.kind == OBSERVER_KIND and _estimator(options) != ESTIMATORS[0]) or \
+    keys = (("f", "f"), ("h", "A")) + ((("l", "L"),) if definition.kind == OBSERVER_KIND else ()) \
+        + ((("c", "C"),) if "C" in options else ())
+    if (definition.kind == OBSERVER_KIND and _estimator(options) != ESTIMATORS[0]) or \
             not all(is_expression_function(options.get(key)) for _, key in keys):
         return None
     parts = {symbol: expression_parts(options[key], key) for symbol, key in keys}

@@ -45,9 +45,9 @@ KERNEL_ABI = 3
 AFFINE, EXPRESSION, LTV, LTV_PLANT = 1, 2, 3, 4
 #: a packed form's kind -> its kernel
 PACKED = {"ltv-observer": LTV, "ltv-plant": LTV_PLANT}
-#: the functions of an FMU's kernel library (= OBSFMU_KERNEL_F, _G, _L): an expression plant's f and h, a source's
-#: value (h), paper 001's observer's and plant's f(y, t), A(t) and (observer) L(t)
-SYMBOLS = ("obsfmu_kernel_f", "obsfmu_kernel_g", "obsfmu_kernel_l")
+#: the functions of an FMU's kernel library (= OBSFMU_KERNEL_F, _G, _L, _C): an expression plant's f and h, a
+#: source's value (h), paper 001's observer's and plant's f(y, t), A(t), (observer) L(t) and C(t)
+SYMBOLS = ("obsfmu_kernel_f", "obsfmu_kernel_g", "obsfmu_kernel_l", "obsfmu_kernel_c")
 #: the step sizes whose matrices the image keeps (= OBSFMU_KERNEL_SLOTS): an importer stepping t_(k+1) - t_k
 #: (fmusim) alternates between a few sizes one ulp apart
 SLOTS = 8
@@ -247,7 +247,7 @@ def kernel_source(definition) -> str | None:
     if made is None:
         return None
     functions, names = made
-    symbols = dict(zip(("f", "h", "l"), SYMBOLS))
+    symbols = dict(zip(("f", "h", "l", "c"), SYMBOLS))
     if isinstance(names, dict):
         names = {symbols[key]: value for key, value in names.items()}
     return c_source({symbols[key]: texts for key, texts in functions.items()}, names)
