@@ -59,10 +59,12 @@ def test_ship_scenario_equals_python_path(monkeypatch, build_dir, order, couplin
     assert_same_columns(fast, slow, columns)
 
 
-@pytest.mark.parametrize("example, stop", [("dcmotor", 0.5), ("chirp_noisy", 1.0), ("pendulum", 1.0)])
+@pytest.mark.parametrize("example, stop", [("dcmotor", 0.5), ("chirp_noisy", 1.0), ("pendulum", 1.0),
+                                           ("state_affine_vanderpol", 2.0)])
 def test_examples_with_linear_blocks_equal_python_path(monkeypatch, build_dir, example, stop):
-    """The examples whose LTI plants, observers and state feedback get a kernel, next to blocks without one (ramps,
-    chirp, noise, an expression plant): the same numbers on both paths."""
+    """The examples whose LTI plants, observers, state feedback, sources and expression plants get a kernel, next to
+    blocks without one (noise, the state-affine observer): the same numbers on both paths (the expression plant of
+    the Van der Pol example bit for bit: its kernel has no BLAS call)."""
     path = ROOT / "examples" / f"{example}.toml"
     fast, slow = both_paths(monkeypatch, lambda: obsfmu.run(path, stop_time=stop, build_dir=build_dir))
     assert_same_columns(fast, slow, [c for c in fast.columns if c != "time"])
