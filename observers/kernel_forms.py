@@ -17,7 +17,7 @@ without integral action), exact over a step whose inputs are linear, ``w(t + s) 
 ``y = h(t, x, u, p)`` integrated by :func:`~observers.integrators.rk4_controlled`; ``f`` and ``h`` are compiled to
 C from the same texts (:mod:`observers.expressions_c`) when the FMU is built.
 
-:class:`PackedForm` -- a block with a C kernel of its own (``kind``; paper 001's observer,
+:class:`PackedForm` -- a block with a C kernel of its own (``kind``; paper 001's plant and observer,
 :mod:`observers.ltv.kernel`): its whole state packed into one vector, the kernel's settings and constants.
 """
 

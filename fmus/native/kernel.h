@@ -3,7 +3,7 @@
  *
  * The slave hands the bridge an IMAGE of itself (fmus/runtime/slave/kernel.py): one vector of doubles (the
  * time, the state x, the inputs w with their record and derivatives, the block's constants, the parameter
- * values) and a layout of int64 saying where each is.  Two kinds of block have a kernel:
+ * values) and a layout of int64 saying where each is.  These kinds of block have a kernel:
  *
  *   KK_AFFINE (observers/kernel_forms.py: LTI plant, Luenberger observer, state feedback), exact over a step
  *     whose inputs are linear, w0 + s dw:
@@ -12,6 +12,9 @@
  *     by observers.integrators.rk4_controlled, operation for operation; f and g are the FMU's own compiled
  *     expressions (observers/expressions_c.py), found by the bridge in the FMU's kernel library;
  *     out = [g(t, x, w, p); x].
+ *   KK_LTV, KK_LTV_PLANT (kernel_ltv.h: paper 001's adaptive observer with least squares, and its plant): the
+ *     block's whole state packed into x (observers/ltv/kernel.py), its step written again in C; A(t), L(t), f(y, t)
+ *     and C(t) are the FMU's compiled expressions.
  *
  * The input segments are built as the Python slave builds them (fmus/runtime/slave/step.py): a port given a
  * derivative follows it; otherwise its <port>_interpolation mode: hold, extrapolate from the previous

@@ -1,8 +1,9 @@
 /*
- * KK_LTV: the step of paper 001's adaptive observer (observers/ltv/observer.py) in C, least squares with a
- * constant C (issue 39).  Included by kernel.h; the image's x is the observer's whole state packed into one vector
- * (observers/ltv/kernel.py), settings its sizes, gains and the offsets of every part, p the constants of its
- * compiled functions A(t), L(t), f(y, t) (the FMU's kernel library: g, l, f) and of C and Theta.
+ * KK_LTV: the step of paper 001's adaptive observer (observers/ltv/observer.py) in C, least squares (issue 39);
+ * KK_LTV_PLANT (end of the file): its plant.  Included by kernel.h; the image's x is the block's whole state packed
+ * into one vector (observers/ltv/kernel.py), settings its sizes, gains and the offsets of every part, p the
+ * constants of its compiled functions A(t), L(t), f(y, t), C(t) (the FMU's kernel library: g, l, f, c), or C itself
+ * when it is constant, and of Theta.
  *
  * One communication step, as LTVAdaptiveObserver.advance, operation for operation:
  *   - the inputs y and u as the polynomials through their last samples (stepping.PolynomialInputs.step);

@@ -31,15 +31,16 @@ __all__ = ["SETTINGS", "PLANT_SETTINGS", "kernel_form", "plant_kernel_form"]
 
 #: the settings of the image, in the order of the C enum (KT_N .. KT_P_SIZE in fmus/native/kernel_ltv.h); the FMU
 #: slave fills input_u, input_y, step_rate, x_longest, x_noted and x_size
-SETTINGS = ("n", "p", "r", "degree", "f_correction", "f_time", "c_varies", "max_substep", "max_dy", "budget", "gamma", "beta",
-            "f0", "M", "initial_error", "tolerance", "epsilon", "step_rate", "phi_limit", "signal_bound", "input_u",
-            "input_y", "x_S", "x_theta", "x_P", "x_lambda", "x_decay", "x_u", "x_y", "x_integral", "x_memo",
-            "x_longest", "x_noted", "x_size", "p_f", "p_A", "p_L", "p_C", "p_where", "p_known", "p_points", "p_size")
+SETTINGS = ("n", "p", "r", "degree", "f_correction", "f_time", "c_varies", "max_substep", "max_dy", "budget",
+            "gamma", "beta", "f0", "M", "initial_error", "tolerance", "epsilon", "step_rate", "phi_limit",
+            "signal_bound", "input_u", "input_y", "x_S", "x_theta", "x_P", "x_lambda", "x_decay", "x_u", "x_y",
+            "x_integral", "x_memo", "x_longest", "x_noted", "x_size", "p_f", "p_A", "p_L", "p_C", "p_where",
+            "p_known", "p_points", "p_size")
 #: the settings of the plant's image, in the order of its C enum (KQ_N .. KQ_P_SIZE); the FMU fills input_u,
 #: step_rate, x_longest, x_noted and x_size
-PLANT_SETTINGS = ("n", "p", "degree", "f_time", "c_varies", "max_substep", "max_dy", "budget", "signal_bound", "input_u",
-                  "step_rate", "x_x", "x_u", "x_longest", "x_noted", "x_size", "p_f", "p_A", "p_C", "p_kbm", "p_theta",
-                  "p_size")
+PLANT_SETTINGS = ("n", "p", "degree", "f_time", "c_varies", "max_substep", "max_dy", "budget", "signal_bound",
+                  "input_u", "step_rate", "x_x", "x_u", "x_longest", "x_noted", "x_size", "p_f", "p_A", "p_C", "p_kbm",
+                  "p_theta", "p_size")
 #: the outputs the kernel writes, in its order
 OUTPUTS = ("x_hat", "theta_hat", "k_hat", "b_hat", "m_hat", "x0_hat", "F_max", "excitation", "converged")
 #: the observer's state, all of it packed (``longest_step``: the FMU slave's, when it has a step rate)
@@ -70,17 +71,16 @@ def kernel_form(observer) -> PackedForm | None:
         where[observer._columns] = np.arange(r)
         known[observer._known_columns] = observer._known
     points = [*SUBSTEP_POINTS, *(w for point in SUBSTEP_POINTS for w in dense_weights(point))]
-    blocks = {"p_f": constants[0], "p_A": constants[1], "p_L": constants[2], "p_C": output,
-              "p_where": where, "p_known": known, "p_points": points}
-    places, size = _offsets({name: len(values) for name, values in blocks.items()})
+    places, parameters = _constants({"p_f": constants[0], "p_A": constants[1], "p_L": constants[2], "p_C": output,
+                                     "p_where": where, "p_known": known, "p_points": points})
     settings = dict.fromkeys(SETTINGS, 0.0)
     settings |= {"n": n, "p": p, "r": r, "degree": d, "f_correction": float(observer.f_correction),
-                "f_time": float(observer.f_time), "c_varies": float(observer.C.varies), "max_substep": observer.max_substep, "max_dy": observer.max_dy,
-                "budget": float(observer.substep_budget), "gamma": estimator.gamma, "beta": estimator.beta,
-                "f0": estimator.f0, "M": estimator.M, "initial_error": observer.initial_error,
-                "tolerance": observer.converged_tolerance, "epsilon": observer.regression_error_bound,
-                "phi_limit": PHI_LIMIT, "signal_bound": MAGNITUDE_BOUND, **offsets, **places, "p_size": size}
-    parameters = np.concatenate([np.ravel(np.asarray(values, dtype=float)) for values in blocks.values()])
+                 "f_time": float(observer.f_time), "c_varies": float(observer.C.varies),
+                 "max_substep": observer.max_substep, "max_dy": observer.max_dy,
+                 "budget": float(observer.substep_budget), "gamma": estimator.gamma, "beta": estimator.beta,
+                 "f0": estimator.f0, "M": estimator.M, "initial_error": observer.initial_error,
+                 "tolerance": observer.converged_tolerance, "epsilon": observer.regression_error_bound,
+                 "phi_limit": PHI_LIMIT, "signal_bound": MAGNITUDE_BOUND, **offsets, **places}
     return PackedForm("ltv-observer", total, ("u", "y"), OUTPUTS, settings, parameters,
                       lambda: _pack(observer, n, W, d), lambda vector: _unpack(observer, vector, offsets, n, W, d))
 
@@ -95,15 +95,12 @@ def plant_kernel_form(plant) -> PackedForm | None:
         return None
     n, d = plant.x.size, plant.inputs.degree
     offsets, total = _offsets({"x_x": n, "x_u": 2 * d + 3})
-    blocks = {"p_f": constants[0], "p_A": constants[1], "p_C": output, "p_kbm": plant._kbm,
-              "p_theta": plant.theta}
-    places, size = _offsets({name: np.size(values) for name, values in blocks.items()})
+    places, parameters = _constants({"p_f": constants[0], "p_A": constants[1], "p_C": output, "p_kbm": plant._kbm,
+                                     "p_theta": plant.theta})
     settings = dict.fromkeys(PLANT_SETTINGS, 0.0)
     settings |= {"n": n, "p": plant.nonlinearities.count, "degree": d, "f_time": float(plant.f_time),
-                 "c_varies": float(plant.C.varies),
-                 "max_substep": plant.max_substep, "max_dy": plant.max_dy, "budget": float(plant.substep_budget),
-                 "signal_bound": MAGNITUDE_BOUND, **offsets, **places, "p_size": size}
-    parameters = np.concatenate([np.ravel(np.asarray(values, dtype=float)) for values in blocks.values()])
+                 "c_varies": float(plant.C.varies), "max_substep": plant.max_substep, "max_dy": plant.max_dy,
+                 "budget": float(plant.substep_budget), "signal_bound": MAGNITUDE_BOUND, **offsets, **places}
 
     def pack() -> np.ndarray:
         return np.concatenate([plant.x, _samples(plant.inputs.samples.get("u", (0, (), ())), d)])
@@ -123,6 +120,12 @@ def _output_vector(C) -> np.ndarray | None:
         return C.constant
     constants = getattr(C.function, "constants", None)
     return None if constants is None else np.asarray(constants, dtype=float)
+
+
+def _constants(blocks: dict) -> tuple[dict[str, int], np.ndarray]:
+    """The constants the kernel reads as one vector, and where each block of them starts (with ``p_size``)."""
+    places, size = _offsets({name: np.size(values) for name, values in blocks.items()})
+    return {**places, "p_size": size}, np.concatenate([np.ravel(np.asarray(v, dtype=float)) for v in blocks.values()])
 
 
 def _offsets(sizes: dict[str, int]) -> tuple[dict[str, int], int]:
