@@ -112,6 +112,18 @@ static int kt_monomial_map(const double *nodes, int size, double *rows)
     return 1;
 }
 
+/* integrators.substep_count(h, max_substep, rate, max_change, budget): equal sub-steps each at most max_substep long,
+ * over which a signal changing at rate changes by at most max_change; 0 when more than budget are needed (the
+ * Python path refuses that step, naming substep_budget) */
+static size_t kt_substep_count(double h, double max_substep, double rate, double max_change, double budget)
+{
+    double by_length = h / max_substep, by_change = rate != 0.0 ? fabs(rate) * h / max_change : 0.0;
+    double limit = budget * (1.0 + 1e-9);
+    if (!(by_length <= limit && by_change <= limit)) return 0;
+    double counted = fmax(ceil(by_length - 1e-9), ceil(by_change - 1e-9));
+    return counted > 1.0 ? (size_t)counted : 1;
+}
+
 /* The polynomial through (nodes in units of h, values): coefficient k = sum_i rows[k][i] values[i] / h^k */
 static int kt_through(const double *nodes, const double *values, int size, double h, Poly *q)
 {
@@ -306,9 +318,7 @@ static int kt_resolve(const Ltv *L, const double *state, const double *y_after, 
             for (size_t i = 0; i < count; i++) J = kt_integral_substep(L, &in->q, mu, dt, i, J, NULL);
             if (pass == 0) J_end = J;
             else { /* the second pass's q gives the points; y through the final J(h) */
-                Poly second = in->q;
                 kt_without_fast_part(&in->y, rows, (int)size, past, J, mu, &in->y);
-                in->q = second;
                 J_end = J;
             }
         }
@@ -519,11 +529,8 @@ static int kernel_ltv(KernelImage *k, double t, double h, const double *w0, cons
         !kt_input(&L, x + (size_t)s[KT_X_Y], t, h, w0[iy], dw[iy], &y, y_after))
         return 0;
     /* substep_count(h, max_substep, y.max_rate(), max_dy, budget) */
-    double rate = kt_max_rate(&y), by_length = h / s[KT_MAX_SUBSTEP];
-    double by_change = rate != 0.0 ? fabs(rate) * h / s[KT_MAX_DY] : 0.0, limit = s[KT_BUDGET] * (1.0 + 1e-9);
-    if (!(by_length <= limit && by_change <= limit)) return 0;
-    double counted = fmax(ceil(by_length - 1e-9), ceil(by_change - 1e-9));
-    size_t count = counted > 1.0 ? (size_t)counted : 1;
+    size_t count = kt_substep_count(h, s[KT_MAX_SUBSTEP], kt_max_rate(&y), s[KT_MAX_DY], s[KT_BUDGET]);
+    if (count == 0) return 0;
     double dt = h / (double)count;
     /* the work: slopes, stage, node, three evaluations, the estimator's sums and its solve */
     double *k1 = work, *k2 = k1 + nW, *k3 = k2 + nW, *k4 = k3 + nW, *stage = k4 + nW, *node = stage + nW;
@@ -724,11 +731,8 @@ static int kernel_ltv_plant(KernelImage *k, double t, double h, const double *w0
     double dy = 0.0, buffer[32];
     const double *C = kt_output_vector(&L, t, buffer);
     for (size_t i = 0; i < n; i++) dy += C[i] * k1[i];
-    double by_length = h / s[KQ_MAX_SUBSTEP], by_change = dy != 0.0 ? fabs(dy) * h / s[KQ_MAX_DY] : 0.0;
-    double limit = s[KQ_BUDGET] * (1.0 + 1e-9);
-    if (!(by_length <= limit && by_change <= limit)) return 0;
-    double counted = fmax(ceil(by_length - 1e-9), ceil(by_change - 1e-9));
-    size_t count = counted > 1.0 ? (size_t)counted : 1;
+    size_t count = kt_substep_count(h, s[KQ_MAX_SUBSTEP], dy, s[KQ_MAX_DY], s[KQ_BUDGET]);
+    if (count == 0) return 0;
     double dt = h / (double)count;
     for (size_t i = 0; i < count; i++) { /* integrators.rk4_step */
         double at = t + (double)i * dt, end = t + (double)(i + 1) * dt, middle = at + dt / 2;

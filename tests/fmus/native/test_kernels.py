@@ -98,14 +98,12 @@ def drive(instance, first, count, step=1e-3):
         assert instance.step(step) == OK, instance.messages()
 
 
-@pytest.mark.parametrize("model", ["ship_plant", "ship_observer", "ship_controller"])
-def test_fmu_state_moves_between_paths(monkeypatch, ship_fmus, model):
-    """A state serialized on one path restores on the other (one format): 100 steps in C, 100 in Python, 100 in C
-    again equal 300 steps in C, inputs and input derivatives set every step."""
-    fmu = ship_fmus[model]
+def moved_between_paths(fmu, monkeypatch):
+    """``fmu`` stepped 300 times in C (the reference), and 100 in C, 100 in Python and 100 in C again, the FMU state
+    serialized and restored at each change of path (inputs and input derivatives set every step): the outputs of
+    both at the end, and the reference's messages."""
     reference = probe(fmu, "reference", monkeypatch=monkeypatch)
     drive(reference, 0, 300)
-    assert IN_C in reference.messages()
     path = probe(fmu, "first", monkeypatch=monkeypatch)
     drive(path, 0, 100)
     for first, kernels in ((100, "python"), (200, None)):
@@ -116,9 +114,19 @@ def test_fmu_state_moves_between_paths(monkeypatch, ship_fmus, model):
         path.slave.setFMUstate(path.slave.deSerializeFMUstate(state))
         path.t = time
         drive(path, first, 100)
-    np.testing.assert_allclose(path.outputs(), reference.outputs(), rtol=AGREEMENT, atol=0)
+    outcome = path.outputs(), reference.outputs(), reference.messages()
     path.free()
     reference.free()
+    return outcome
+
+
+@pytest.mark.parametrize("model", ["ship_plant", "ship_observer", "ship_controller"])
+def test_fmu_state_moves_between_paths(monkeypatch, ship_fmus, model):
+    """A state serialized on one path restores on the other (one format): 100 steps in C, 100 in Python, 100 in C
+    again equal 300 steps in C, inputs and input derivatives set every step."""
+    moved, reference, messages = moved_between_paths(ship_fmus[model], monkeypatch)
+    assert IN_C in messages
+    np.testing.assert_allclose(moved, reference, rtol=AGREEMENT, atol=0)
 
 
 def test_refusals_come_from_the_python_path(monkeypatch, ship_fmus):
@@ -356,23 +364,9 @@ def paper_001(build_dir):
 def test_paper_001_steps_in_c_and_its_state_moves_between_paths(monkeypatch, paper_001, model):
     """Each FMU on its own (inputs and their derivatives set every step): it says it steps in C, and a state
     serialized after 100 steps in C, continued 100 in Python and 100 in C again, equals 300 steps in C."""
-    fmu = paper_001[model]
-    reference = probe(fmu, "reference", monkeypatch=monkeypatch)
-    drive(reference, 0, 300)
-    assert IN_C in reference.messages() and "paper 001" in reference.messages()
-    path = probe(fmu, "first", monkeypatch=monkeypatch)
-    drive(path, 0, 100)
-    for first, kernels in ((100, "python"), (200, None)):
-        state = path.slave.serializeFMUstate(path.slave.getFMUstate())
-        time = path.t
-        path.free()
-        path = probe(fmu, f"from{first}", kernels, monkeypatch)
-        path.slave.setFMUstate(path.slave.deSerializeFMUstate(state))
-        path.t = time
-        drive(path, first, 100)
-    np.testing.assert_allclose(path.outputs(), reference.outputs(), rtol=AGREEMENT, atol=1e-14)
-    path.free()
-    reference.free()
+    moved, reference, messages = moved_between_paths(paper_001[model], monkeypatch)
+    assert IN_C in messages and "paper 001" in messages
+    np.testing.assert_allclose(moved, reference, rtol=AGREEMENT, atol=1e-14)
 
 
 @pytest.mark.parametrize("model, port", [("ltv_ls_observer", "y"), ("ltv_ls_plant", "u")])
