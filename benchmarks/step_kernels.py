@@ -175,11 +175,15 @@ def main() -> None:
                                      "--kernels", kernels], check=True, capture_output=True)
         from obsfmu.fmus.builder import build_fmu
         from obsfmu.fmus.runtime.kinds.expression import expression_plant_definition
+        from obsfmu.fmus.runtime.kinds.noise import noise_source_definition
         for kernels in ("c", "python"):
             duffing = expression_plant_definition("duffing", DUFFING, ["x[1]"], [1.0, 0.0], inputs=1,
                                                   parameters=DUFFING_PARAMETERS)
-            duffing.kernels = kernels
-            build_fmu(duffing, work / kernels)
+            # white noise, two streams, a new sample every step: a fresh default_rng((seed, k)) each step
+            noise = noise_source_definition("white_noise", std=1.0, sample_interval=1e-3, seed=1, size=2)
+            for definition in (duffing, noise):
+                definition.kernels = kernels
+                build_fmu(definition, work / kernels)
         host = bare_host(work)
         rows = []
 
@@ -197,6 +201,9 @@ def main() -> None:
         for kernels in ("c", "python"):
             measure(f"`duffing` expression plant, kernels {kernels}", work / kernels / "duffing.fmu", 1e-3,
                     args.steps if kernels == "c" else args.ltv_steps)
+        for kernels in ("c", "python"):
+            measure(f"`white_noise` (2 streams, a sample per step), kernels {kernels}",
+                    work / kernels / "white_noise.fmu", 1e-3, args.steps if kernels == "c" else args.ltv_steps)
         for kernels in ("c", "python"):
             measure(f"`ltv_ls_observer`, kernels {kernels}", work / f"ltv_{kernels}" / "ltv_ls_observer.fmu", 1e-3,
                     args.ltv_kernel_steps if kernels == "c" else args.ltv_steps)

@@ -10,7 +10,9 @@ over the time ``t``, the vectors ``x``, ``u``, ``p`` (indexed from 1, as the FMU
 Grammar: numbers; ``+ - * / ** %``, unary ``-`` and ``+``; ``^`` is a power too (``y^3``, with the
 precedence of ``**``: ``-x^2 = -(x^2)``, ``2^3^2 = 2^9``); comparisons ``< <= > >= == !=`` (true is 1);
 ``and``, ``or``, ``not``; the functions ``sin cos tan asin acos atan atan2(y, x) sinh cosh tanh exp log
-log10 sqrt abs sign min(a, b, ...) max(a, b, ...) clip(x, low, high) where(condition, a, b)``.
+log10 sqrt abs sign floor min(a, b, ...) max(a, b, ...) clip(x, low, high) where(condition, a, b)``, and numpy's
+seeded random stream ``randn(seed, k, j)`` (the ``j``-th standard normal of ``default_rng((seed, k))``) and
+``rand(seed, k, j)`` (its ``j``-th uniform on ``[0, 1)``), :mod:`observers.random_stream`.
 Anything else -- attributes, strings, other calls, slices, lambdas, ``a if c else b``, ``#`` comments --
 is refused, naming the place (file, line, column) and the token.
 
@@ -33,6 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .checks import ParameterError
+from .random_stream import rand, randn
 
 __all__ = ["ExpressionError", "Source", "Names", "compile_expression", "compile_vector", "VectorFunction", "FUNCTIONS",
            "MAX_LENGTH", "MAX_DEPTH", "check_text", "parse_text"]
@@ -172,7 +175,7 @@ FUNCTIONS: dict[str, tuple[int, Callable]] = {
     "atan2": (2, math.atan2), "sinh": (1, _growing(math.sinh)), "cosh": (1, _growing(math.cosh)),
     "tanh": (1, math.tanh), "exp": (1, _exp), "log": (1, _log), "log10": (1, _log10), "sqrt": (1, _sqrt),
     "abs": (1, abs), "sign": (1, _sign), "floor": (1, _floor), "min": (-2, _extreme(min)), "max": (-2, _extreme(max)),
-    "clip": (3, _clip), "where": (3, None),
+    "clip": (3, _clip), "where": (3, None), "randn": (3, randn), "rand": (3, rand),
 }
 
 _BINARY = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul, ast.Div: operator.truediv,

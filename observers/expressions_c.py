@@ -36,9 +36,10 @@ from __future__ import annotations
 import ast
 import math
 import re
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 from .expressions import CONSTANTS, FUNCTIONS, Names, Source, check_text, parse_text, compile_vector
+from .random_stream import C_RAND, C_RANDN, C_STREAM, c_tables
 
 __all__ = ["c_source"]
 
@@ -99,8 +100,9 @@ _PERIODIC = "isfinite(v)"                                  # _periodic, _tan
 _UNIT_INTERVAL = "(-1.0 <= v && v <= 1.0)"                 # _unit_interval
 _LOGARITHM = ("v > 0.0", "(v == 0.0 ? -INFINITY : NAN)")   # _log, _log10
 
-#: the source's helpers: name -> (C definition, the helpers it uses); emitted in this order, the used ones only
-_HELPERS: dict[str, tuple[str, tuple[str, ...]]] = {
+#: the source's helpers: name -> (C definition, or a function that writes it; the helpers it uses); emitted in this
+#: order, the used ones only
+_HELPERS: dict[str, tuple[str | Callable[[], str], tuple[str, ...]]] = {
     **{f"libm_{name}": _libm(name) for name in ("sin", "cos", "tan", "asin", "acos", "atan", "sinh", "cosh",
                                                 "tanh", "exp", "log", "log10", "floor")},
     "libm_atan2": _libm("atan2", 2), "libm_pow": _libm("pow", 2),
@@ -232,6 +234,9 @@ static double ex_power(double a, double b)      /* _safe(_power) */
         return INFINITY;
     return ex_float_pow(a, b);
 }""", ("float_pow",)),
+    "ziggurat": (c_tables, ()),                            # written when used: numpy is asked for it (0.4 s)
+    "random_stream": (C_STREAM, ()), "randn": (C_RANDN, ("random_stream", "ziggurat")),
+    "rand": (C_RAND, ("random_stream",)),
 }
 
 #: a function of the grammar -> the C function that computes it (``where`` is written as ``?:``)
@@ -239,7 +244,7 @@ _CALLS = {"sin": "ex_sin", "cos": "ex_cos", "tan": "ex_tan", "asin": "ex_asin", 
           "atan": "ex_libm_atan", "atan2": "ex_atan2", "sinh": "ex_libm_sinh", "cosh": "ex_libm_cosh",
           "tanh": "ex_libm_tanh", "exp": "ex_libm_exp", "log": "ex_log", "log10": "ex_log10", "sqrt": "ex_sqrt",
           "abs": "fabs", "sign": "ex_sign", "floor": "ex_libm_floor", "min": "ex_min", "max": "ex_max",
-          "clip": "ex_clip"}
+          "clip": "ex_clip", "randn": "ex_randn", "rand": "ex_rand"}
 
 _ARITHMETIC = {ast.Add: "add", ast.Sub: "subtract"}
 _SAFE = {ast.Div: "divide", ast.Mod: "remainder", ast.Pow: "power"}
@@ -372,7 +377,7 @@ def _definitions(helpers: set[str]) -> list[str]:
         if name not in needed:
             needed.add(name)
             pending.extend(_HELPERS[name][1])
-    return [code for name, (code, _) in _HELPERS.items() if name in needed]
+    return [code() if callable(code) else code for name, (code, _) in _HELPERS.items() if name in needed]
 
 
 def c_source(functions: dict[str, Sequence[str]], names: Names | dict[str, Names], source: Source | None = None) -> str:
@@ -394,8 +399,9 @@ def c_source(functions: dict[str, Sequence[str]], names: Names | dict[str, Names
     Returns
     -------
     str
-        The C source; it includes ``<math.h>`` only, its helpers are ``static``, and its results are
-        those of the Python closures to the bit when compiled with ``-ffp-contract=off``.
+        The C source; it includes ``<math.h>`` only (and ``<stdint.h>`` for ``randn`` and ``rand``), its helpers
+        are ``static``, and its results are those of the Python closures to the bit when compiled with
+        ``-ffp-contract=off``.
 
     Raises
     ------

@@ -39,7 +39,9 @@ from obsfmu.observers.block import Block, Segment
 from obsfmu.observers.checks import ParameterError, require_positive
 from obsfmu.observers.integrators import BudgetError, expm
 
-from .sources.base import integer_parameter, interval_index
+from obsfmu.observers.kernel_forms import ExpressionForm
+
+from .sources.base import BOUNDARY_TOLERANCE, integer_parameter, interval_index
 
 __all__ = ["CHECKPOINT", "Noise", "NoiseSource", "AddedNoise"]
 
@@ -166,6 +168,23 @@ class Noise:
     def __call__(self, t: float) -> np.ndarray:
         return self.sample(int(interval_index(t, self.dt)))
 
+    def parameters(self) -> np.ndarray:
+        """The vector ``p`` that :meth:`expression` reads: ``std``, ``dt``, ``seed`` and the uniform draw's
+        ``low = -sqrt 3`` and ``high - low``."""
+        return np.array([self.std, self.dt, self.seed, -math.sqrt(3.0), math.sqrt(3.0) - -math.sqrt(3.0)])
+
+    def expression(self, stream: int) -> str | None:
+        """Stream ``stream`` of :meth:`__call__` (white noise) in the expression language of ``t`` and ``p`` =
+        :meth:`parameters`, the same draws of the same stream (:mod:`observers.random_stream`), the same operations
+        in the same order: compiled to C, the step kernel's output (issue 39).  None when band-limited (its filter
+        steps in Python).  A sample index beyond ``2^53`` (``t / dt`` beyond 9e15) is NaN in the expression."""
+        if self.filter is not None:
+            return None
+        k = f"clip(floor(t / p[2] + {BOUNDARY_TOLERANCE!r}), 0, {2.0 ** 62!r})"        # interval_index
+        draw = f"randn(p[3], {k}, {stream})" if self.distribution == "gaussian" else \
+            f"(p[4] + p[5] * rand(p[3], {k}, {stream}))"                             # numpy's uniform(low, high)
+        return f"where(p[1] == 0, 0, p[1] * {draw})"
+
 
 class NoiseSource(Block):
     """No inputs; output ``y = noise(t)`` (``size`` streams), held: ``derivative(t) = 0``."""
@@ -186,6 +205,14 @@ class NoiseSource(Block):
 
     def advance(self, t: float, h: float, inputs: Mapping[str, Segment]) -> None:
         """Nothing to integrate: the output is a function of time."""
+
+    def kernel_form(self) -> ExpressionForm | None:
+        """The compiled kernel's form of white noise: no state, the outputs :meth:`Noise.expression` (plus ``u``);
+        band-limited noise steps in Python."""
+        if self.noise.filter is not None:
+            return None
+        return ExpressionForm("", 0, tuple(self.input_sizes), self.noise.parameters(), (math.inf, 1.0, 1.0, 1.0),
+                              outputs=("y",))
 
 
 class AddedNoise(NoiseSource):

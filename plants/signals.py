@@ -37,6 +37,15 @@ class SampledNoise:
         self.seed = int(seed)
         self.size = size
 
+    @staticmethod
+    def expression(first: int) -> str:
+        """One stream of :meth:`__call__` in the expression language (the compiled kernel's noise), reading ``std``,
+        ``dt`` and ``seed`` as ``p[first]``, ``p[first + 1]``, ``p[first + 2]``: the same draws of numpy's stream
+        (:mod:`observers.random_stream`), 0 when ``std`` is."""
+        std, dt, seed = first, first + 1, first + 2
+        interval = f"max(floor(t / p[{dt}] + 1e-09), 0)"
+        return f"where(p[{std}] == 0, 0, p[{std}] * randn(p[{seed}], {interval}, 0))"
+
     def __call__(self, t: float) -> np.ndarray:
         if self.std == 0.0:
             return np.zeros(self.size)
@@ -107,9 +116,17 @@ class SignalSource(Block):
     def advance(self, t: float, h: float, inputs: Mapping[str, Segment]) -> None:
         """Nothing to integrate: the output is a function of time."""
 
-    def kernel_form(self) -> ExpressionForm | None:
-        """The compiled kernel's form without noise (:meth:`Waveform.expression`, compiled when the FMU is built);
-        with noise the source steps in Python (its random stream is numpy's)."""
-        if self.noise is not None:
-            return None
-        return ExpressionForm("", 0, (), self.waveform.parameters(), (np.inf, 1.0, 1.0, 1.0), outputs=("y",))
+    @staticmethod
+    def expression(sines: int) -> str:
+        """:meth:`outputs` in the expression language, reading :meth:`parameters` as ``p``: the waveform
+        (:meth:`Waveform.expression`) plus the noise's draw of numpy's stream (:mod:`observers.random_stream`)."""
+        return f"{Waveform.expression(sines)} + {SampledNoise.expression(1 + 3 * sines + 4 + 1)}"
+
+    def parameters(self) -> np.ndarray:
+        """The waveform's parameters, then the noise's ``std``, ``dt`` and ``seed`` (0, 1, 0 without noise)."""
+        noise = (0.0, 1.0, 0.0) if self.noise is None else (self.noise.std, self.noise.dt, self.noise.seed)
+        return np.concatenate([self.waveform.parameters(), noise])
+
+    def kernel_form(self) -> ExpressionForm:
+        """The compiled kernel's form: :meth:`expression`, compiled when the FMU is built."""
+        return ExpressionForm("", 0, (), self.parameters(), (np.inf, 1.0, 1.0, 1.0), outputs=("y",))

@@ -422,8 +422,10 @@ static int kernel_functions(Component *c)
         k->image.g = (KernelFunction *)dlsym(k->library, OBSFMU_KERNEL_G);
         k->image.l = (KernelFunction *)dlsym(k->library, OBSFMU_KERNEL_L);
         k->image.c = (KernelFunction *)dlsym(k->library, OBSFMU_KERNEL_C);
+        k->image.v = (KernelFunction *)dlsym(k->library, OBSFMU_KERNEL_V);
     }
     return k->image.f != NULL && k->image.g != NULL && (k->image.kind != KK_LTV || k->image.l != NULL) &&
+                   (k->image.kind != KK_LTV_PLANT || k->image.v != NULL) &&
                    (!kt_c_varies(&k->image) || k->image.c != NULL)
                ? 0
                : -1;

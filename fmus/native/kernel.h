@@ -33,7 +33,7 @@
 #include <stdint.h>
 #include <string.h>
 
-#define OBSFMU_KERNEL_ABI 3 /* = fmus.runtime.slave.kernel.KERNEL_ABI */
+#define OBSFMU_KERNEL_ABI 4 /* = fmus.runtime.slave.kernel.KERNEL_ABI */
 /* The matrices of this many step sizes are kept (= fmus.runtime.slave.kernel.SLOTS): an importer that steps
  * t_(k+1) - t_k, like fmusim, gives a few step sizes one ulp apart, alternating */
 #define OBSFMU_KERNEL_SLOTS 8
@@ -42,6 +42,7 @@
 #define OBSFMU_KERNEL_G "obsfmu_kernel_g"
 #define OBSFMU_KERNEL_L "obsfmu_kernel_l"
 #define OBSFMU_KERNEL_C "obsfmu_kernel_c"
+#define OBSFMU_KERNEL_V "obsfmu_kernel_v"
 
 /* The layout's header, in the order of fmus.runtime.slave.kernel.HEADER */
 enum {
@@ -67,8 +68,9 @@ typedef struct {
     double *time, *x, *w, *d, *previous, *previous_time, *moving, *out, *C, *D, *e, *Phi, *G0, *G1, *h, *bound,
         *values, *p, *settings, *scratch;
     const int64_t *start, *mode, *table; /* port starts (ports + 1), port modes, (class, index) per variable */
-    KernelFunction *f, *g, *l, *c;       /* the FMU's compiled expressions (set by the bridge): f, g of KK_EXPRESSION;
-                                            f(y, t), A(t), L(t) and C(t) of KK_LTV (KK_LTV_PLANT: no L) */
+    KernelFunction *f, *g, *l, *c, *v;   /* the FMU's compiled expressions (set by the bridge): f, g of KK_EXPRESSION;
+                                            f(y, t), A(t), L(t) and C(t) of KK_LTV (KK_LTV_PLANT: no L, and v(t), its
+                                            measurement noise) */
     int outputs_valid;                   /* out holds the outputs of the present x and w */
     int slot;                            /* of the matrices: the one of the last step, or the one to fill next */
 } KernelImage;

@@ -40,7 +40,7 @@ SETTINGS = ("n", "p", "r", "degree", "f_correction", "f_time", "c_varies", "max_
 #: step_rate, x_longest, x_noted and x_size
 PLANT_SETTINGS = ("n", "p", "degree", "f_time", "c_varies", "max_substep", "max_dy", "budget", "signal_bound",
                   "input_u", "step_rate", "x_x", "x_u", "x_longest", "x_noted", "x_size", "p_f", "p_A", "p_C", "p_kbm",
-                  "p_theta", "p_size")
+                  "p_theta", "p_noise", "p_size")
 #: the outputs the kernel writes, in its order
 OUTPUTS = ("x_hat", "theta_hat", "k_hat", "b_hat", "m_hat", "x0_hat", "F_max", "excitation", "converged")
 #: the observer's state, all of it packed (``longest_step``: the FMU slave's, when it has a step rate)
@@ -88,15 +88,15 @@ def kernel_form(observer) -> PackedForm | None:
 def plant_kernel_form(plant) -> PackedForm | None:
     """The packed form of paper 001's plant (module docstring), or None when it steps in Python."""
     constants = [getattr(function, "constants", None) for function in (plant.f, plant.A)]
-    noisy = plant.noise is not None and plant.noise.std
     output = _output_vector(plant.C)
-    if output is None or noisy or any(c is None for c in constants) or set(plant.get_state()) != {"x", "inputs"} \
+    if output is None or any(c is None for c in constants) or set(plant.get_state()) != {"x", "inputs"} \
             or plant.inputs.degree > 5:
         return None
     n, d = plant.x.size, plant.inputs.degree
     offsets, total = _offsets({"x_x": n, "x_u": 2 * d + 3})
+    noise = (0.0, 1.0, 0.0) if plant.noise is None else (plant.noise.std, plant.noise.dt, plant.noise.seed)
     places, parameters = _constants({"p_f": constants[0], "p_A": constants[1], "p_C": output, "p_kbm": plant._kbm,
-                                     "p_theta": plant.theta})
+                                     "p_theta": plant.theta, "p_noise": noise})   # v(t): SampledNoise.expression
     settings = dict.fromkeys(PLANT_SETTINGS, 0.0)
     settings |= {"n": n, "p": plant.nonlinearities.count, "degree": d, "f_time": float(plant.f_time),
                  "c_varies": float(plant.C.varies), "max_substep": plant.max_substep, "max_dy": plant.max_dy,

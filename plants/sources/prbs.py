@@ -23,6 +23,36 @@ PRIMITIVE_TAPS = {
 }
 
 
+#: PRBS.value in C (Source.c_value): p = amplitude, bit_period, seed, n, polynomial, offset
+_C_VALUE = """\
+static uint64_t prbs_multiply(uint64_t a, uint64_t b, uint64_t polynomial, int n)   /* PRBS._multiply */
+{
+    uint64_t product = 0;
+    for (; b; b >>= 1) {
+        if (b & 1) product ^= a;
+        a <<= 1;                                                 /* PRBS._times_x */
+        if (a >> n & 1) a ^= polynomial;
+    }
+    return product;
+}
+
+static double source_value(double t, const double *p)
+{
+    const uint64_t seed = (uint64_t)p[2], polynomial = (uint64_t)p[4];
+    const int n = (int)p[3];
+    double index = floor(t / p[1] + 1e-09);                      /* interval_index */
+    uint64_t k, result = 1, power = 2, bits;                     /* x^0, x^1 */
+    int parity = 0;
+    index = index != index ? 0.0 : index < 0.0 ? 0.0 : index > 0x1p62 ? 0x1p62 : index;
+    for (k = (uint64_t)index; k; k >>= 1) {                      /* x^k mod p(x): PRBS.bit */
+        if (k & 1) result = prbs_multiply(result, power, polynomial, n);
+        power = prbs_multiply(power, power, polynomial, n);
+    }
+    for (bits = result & seed; bits; bits >>= 1) parity ^= (int)(bits & 1);
+    return p[5] + p[0] * (2.0 * (double)parity - 1.0);
+}"""
+
+
 class PRBS(PiecewiseConstant):
     """Pseudo-random binary sequence of a maximal-length LFSR: ``y = offset + amplitude (2 a_k - 1)``
     on bit interval ``k`` (``[k bit_period, (k + 1) bit_period)``, negative times in bit 0).
@@ -86,3 +116,12 @@ class PRBS(PiecewiseConstant):
         k = interval_index(t, self.bit_period)
         bits = np.vectorize(self.bit, otypes=[float])(k) if k.ndim else float(self.bit(int(k)))
         return self.offset + self.amplitude * (2.0 * np.asarray(bits) - 1.0)
+
+    def parameters(self) -> np.ndarray:
+        """``amplitude``, ``bit_period``, ``seed``, ``n``, the polynomial's bits, ``offset`` (:meth:`c_value`)."""
+        return np.array([self.amplitude, self.bit_period, self.seed, self.register_length, self._polynomial,
+                         self.offset], dtype=float)
+
+    def c_value(self) -> str:
+        """:meth:`value` in C: :func:`interval_index`, then :meth:`bit` by the same square-and-multiply over GF(2)."""
+        return _C_VALUE

@@ -17,6 +17,34 @@ from .base import Source
 __all__ = ["Table", "CsvColumn"]
 
 
+#: Table.value in C (Source.c_value): p = N, linear, times (N), values (N)
+_C_VALUE = """\
+static double source_value(double t, const double *p)
+{
+    const size_t count = (size_t)p[0];
+    const double *x = p + 2, *y = p + 2 + count;
+    size_t low = 0, high = count;                                /* the first time after t: searchsorted right */
+    while (low < high) {
+        size_t middle = low + (high - low) / 2;
+        if (x[middle] <= t) low = middle + 1; else high = middle;
+    }
+    if (p[1] == 0.0)                                             /* previous: values[max(i, 0)] */
+        return y[low > 0 ? low - 1 : 0];
+    if (count == 1) return y[0];                                 /* numpy.interp's rules from here */
+    if (t != t) return t;
+    if (low == 0) return y[0];                                   /* before the table */
+    if (low == count) return y[count - 1];                       /* at or after its last time */
+    size_t j = low - 1;
+    if (x[j] == t) return y[j];
+    double slope = (y[j + 1] - y[j]) / (x[j + 1] - x[j]), value = slope * (t - x[j]) + y[j];
+    if (value != value) {                                        /* NaN one way: the other, then a flat piece */
+        value = slope * (t - x[j + 1]) + y[j + 1];
+        if (value != value && y[j] == y[j + 1]) value = y[j];
+    }
+    return value;
+}"""
+
+
 class Table(Source):
     """Piecewise-linear (``interpolation="linear"``) or previous-value (``"previous"``) table of
     ``(times_i, values_i)``, ``times`` strictly increasing; held at ``values_0`` before ``times_0``
@@ -63,6 +91,14 @@ class Table(Source):
         if self.interpolation == "linear":
             return np.interp(np.asarray(t, dtype=float), self.times, self.values)
         return self.values[np.maximum(self._segment(t), 0)]
+
+    def parameters(self) -> np.ndarray:
+        """The count ``N``, 1 for linear (0 previous), the ``N`` times and the ``N`` values (:meth:`c_value`)."""
+        return np.concatenate([[self.times.size, self.interpolation == "linear"], self.times, self.values])
+
+    def c_value(self) -> str:
+        """:meth:`value` in C: numpy's ``interp`` (its rules at and beyond the ends) or the previous value."""
+        return _C_VALUE
 
     def derivative(self, t):
         i = self._segment(t)

@@ -65,6 +65,8 @@ GRID = [
     "sqrt(x[1] ** 2 + x[2] ** 2) - abs(atan2(x[2], x[1]))", "sinh(x[1]) / cosh(x[1]) - tanh(x[1])",
     "clip(min(x[1], x[2]) * max(x[2], x[3]), -abs(x[3]), abs(x[3]))", "sign(x[1] - x[2]) * (x[1] % x[2])",
     "asin(clip(x[1], -1, 1)) + acos(clip(x[2] / 10, -1, 1))", "(x[1] < x[2]) + (x[2] <= x[3]) * 2 - (x[1] == x[3])",
+    # numpy's random stream: NaN outside whole seeds, intervals and draws (observers/random_stream.py)
+    "randn(x[1], x[2], x[3])", "rand(x[1], x[2], x[3])", "randn(abs(x[1]), 3, 0) + rand(7, abs(x[2]), 2)",
 ]
 # 0.0 - x and 0.0 + -x, x never -0.0: GCC 12 folds them into -x (-0.0 for x = +0.0, IEEE's 0.0 - 0.0 is +0.0)
 SIGNED_ZERO = ["0 - abs(x[1])", "0 + -abs(x[1])", "-abs(x[1]) + 0", "(not 1e-300) - (x[1] < 2)", "0 - (x[1] > 0)",
@@ -242,9 +244,9 @@ def test_a_function_without_expressions_writes_nothing(library):
     assert _Kernel(library, "empty", [], NAMES).c(0.0, [0.0], [0.0], [0.0]).size == 0
 
 
-def test_the_source_includes_math_h_only_and_exports_only_the_symbols(sources, library):
+def test_the_source_includes_math_h_and_stdint_h_only_and_exports_only_the_symbols(sources, library):
     includes = [line for source in sources for line in source.splitlines() if line.startswith("#include")]
-    assert set(includes) == {"#include <math.h>"}
+    assert set(includes) == {"#include <math.h>", "#include <stdint.h>"}
     if shutil.which("nm") is None:
         pytest.skip("no nm")
     listing = subprocess.run(["nm", "-D", "--defined-only", library._name], check=True, capture_output=True,

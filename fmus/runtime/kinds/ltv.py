@@ -15,6 +15,7 @@ from collections.abc import Callable
 import numpy as np
 
 from obsfmu.observers.checks import ParameterError
+from obsfmu.observers.expressions import Names
 from obsfmu.observers.integrators import DEFAULT_SUBSTEP_BUDGET
 from obsfmu.observers.ltv import LTVAdaptiveObserver
 from obsfmu.observers.ltv.estimators import DELTA_FLOOR, ESTIMATORS, require_exact
@@ -87,7 +88,8 @@ def _observer(p, options):
 
 def kernel_expressions(definition: FmuDefinition):
     """The compiled kernel's functions of the adaptive observer or the plant (``f`` the nonlinearities, ``h``
-    ``A(t)``, ``l`` the observer's ``L(t)``, ``c`` a ``C(t)``) and the names of each; None when it steps in Python: a
+    ``A(t)``, ``l`` the observer's ``L(t)``, ``c`` a ``C(t)``, ``v`` the plant's measurement noise) and the names of
+    each; None when it steps in Python: a
     function given as a ``module:function`` reference, or an observer's estimator other than least squares
     (observers/ltv/kernel.py)."""
     options = definition.options
@@ -97,6 +99,8 @@ def kernel_expressions(definition: FmuDefinition):
             not all(is_expression_function(options.get(key)) for _, key in keys):
         return None
     parts = {symbol: expression_parts(options[key], key) for symbol, key in keys}
+    if definition.kind == PLANT_KIND:                                        # v(t), the measurement noise
+        parts["v"] = ([SampledNoise.expression(1)], Names(p=3))
     return {symbol: part[0] for symbol, part in parts.items()}, {symbol: part[1] for symbol, part in parts.items()}
 
 

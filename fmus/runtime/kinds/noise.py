@@ -10,12 +10,13 @@ noise is band-limited, ``filter_order``, ``interval_budget``); ``distribution`` 
 
 from __future__ import annotations
 
+from obsfmu.observers.expressions import Names
 from obsfmu.plants.noise import AddedNoise, Noise, NoiseSource
 
 from ..definition import FmuDefinition, Parameter, Port
 from . import register
 
-__all__ = ["noise_source_definition", "added_noise_definition"]
+__all__ = ["noise_source_definition", "added_noise_definition", "kernel_expressions"]
 
 
 def _noise(p, options) -> Noise:
@@ -33,6 +34,17 @@ def _noise_source(p, options):
 @register("added-noise")
 def _added_noise(p, options):
     return AddedNoise(_noise(p, options))
+
+
+def kernel_expressions(definition: FmuDefinition) -> tuple[dict[str, list[str]], Names] | None:
+    """The compiled kernel's expressions of white noise (no state: ``f`` empty; ``h`` each stream, plus ``u`` on a
+    connection) and their names; None when band-limited (it steps in Python)."""
+    noise = _noise({p.name: p.array(p.value) for p in definition.parameters}, definition.options)
+    if noise.expression(0) is None:
+        return None
+    added = definition.kind == "added-noise"
+    streams = [("u[{}] + " if added else "").format(j + 1) + noise.expression(j) for j in range(noise.size)]
+    return {"f": [], "h": streams}, Names(u=noise.size if added else 0, p=noise.parameters().size)
 
 
 def _definition(model_name: str, kind: str, size: int, std, sample_interval, seed, distribution, cutoff_hz,

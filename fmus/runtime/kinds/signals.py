@@ -24,9 +24,10 @@ def _signal_source(p, options):
 
 
 def kernel_expressions(definition: FmuDefinition) -> tuple[dict[str, list[str]], Names]:
-    """The compiled kernel's expressions (no state: ``f`` empty, ``h`` the waveform) and their names."""
+    """The compiled kernel's expressions (no state: ``f`` empty, ``h`` the waveform and its noise) and their
+    names."""
     sines = next(len(p.value) for p in definition.parameters if p.name == "amplitude")
-    return {"f": [], "h": [Waveform.expression(sines)]}, Names(p=1 + 3 * sines + 4)
+    return {"f": [], "h": [SignalSource.expression(sines)]}, Names(p=1 + 3 * sines + 4 + 3)
 
 
 def source_definition(model_name: str, sines: int = 2, *, offset=0.0, amplitude=None, omega=None,

@@ -20,6 +20,7 @@ import numpy as np
 
 from obsfmu.observers.expressions import Names
 from obsfmu.plants.sources import PRBS, Chirp, Constant, CsvColumn, MultiSine, Ramp, Sine, Square, Step, Table
+from obsfmu.plants.sources.base import c_value_source
 
 from ..definition import FmuDefinition, Parameter, Port
 from . import register
@@ -47,14 +48,24 @@ for _family, _class in SOURCE_KINDS.items():
     register(f"{_family}-source")(_factory(_class))
 
 
+def _built(definition: FmuDefinition):
+    family = definition.kind.removesuffix("-source")
+    return SOURCE_KINDS[family](**_arguments({p.name: p.array(p.value) for p in definition.parameters},
+                                             definition.options))
+
+
 def kernel_expressions(definition: FmuDefinition):
     """The compiled kernel's expressions of a source whose output has one (``f`` empty, ``h`` its value) and their
-    names; None for the others (prbs, table: they step in Python)."""
-    family = definition.kind.removesuffix("-source")
-    source = SOURCE_KINDS[family](**_arguments({p.name: p.array(p.value) for p in definition.parameters},
-                                               definition.options))
+    names; None for the others (prbs, table: :func:`kernel_c_source`)."""
+    source = _built(definition)
     text = source.expression()
     return None if text is None else ({"f": [], "h": [text]}, Names(p=source.parameters().size))
+
+
+def kernel_c_source(definition: FmuDefinition) -> str | None:
+    """The kernel library of a source whose value is C of its own (prbs, table: :meth:`Source.c_value`)."""
+    value = _built(definition).c_value()
+    return None if value is None else c_value_source(value)
 
 
 def _per_second(unit):

@@ -40,14 +40,15 @@ from .common import EXTRAPOLATE, INTERPOLATE, NUMERICAL_FAULTS
 __all__ = ["Kernels", "KERNEL_ABI", "HEADER", "SYMBOLS", "kernel_source"]
 
 #: the version of the image's layout, checked by the bridge (= OBSFMU_KERNEL_ABI in fmus/native/kernel.h)
-KERNEL_ABI = 3
+KERNEL_ABI = 4
 #: the kinds of kernel (= KK_AFFINE, KK_EXPRESSION, KK_LTV, KK_LTV_PLANT)
 AFFINE, EXPRESSION, LTV, LTV_PLANT = 1, 2, 3, 4
 #: a packed form's kind -> its kernel
 PACKED = {"ltv-observer": LTV, "ltv-plant": LTV_PLANT}
-#: the functions of an FMU's kernel library (= OBSFMU_KERNEL_F, _G, _L, _C): an expression plant's f and h, a
-#: source's value (h), paper 001's observer's and plant's f(y, t), A(t), (observer) L(t) and C(t)
-SYMBOLS = ("obsfmu_kernel_f", "obsfmu_kernel_g", "obsfmu_kernel_l", "obsfmu_kernel_c")
+#: the functions of an FMU's kernel library (= OBSFMU_KERNEL_F, _G, _L, _C, _V): an expression plant's f and h, a
+#: source's value (h), paper 001's observer's and plant's f(y, t), A(t), (observer) L(t) and C(t), (plant) the
+#: measurement noise v(t)
+SYMBOLS = ("obsfmu_kernel_f", "obsfmu_kernel_g", "obsfmu_kernel_l", "obsfmu_kernel_c", "obsfmu_kernel_v")
 #: the step sizes whose matrices the image keeps (= OBSFMU_KERNEL_SLOTS): an importer stepping t_(k+1) - t_k
 #: (fmusim) alternates between a few sizes one ulp apart
 SLOTS = 8
@@ -236,18 +237,22 @@ def kernel_source(definition) -> str | None:
     """The C source of the FMU's kernel library -- the expressions of a continuous expression plant, or of a
     source's value -- compiled by the builder for each platform (:func:`fmus.native.kernel_library`); None when
     its kernel needs none."""
-    from ..kinds import expression, ltv, signals, sources
-    module = {"expression-plant": expression, "signal-source": signals, ltv.OBSERVER_KIND: ltv, ltv.PLANT_KIND: ltv}.get(
+    from ..kinds import expression, ltv, noise, signals, sources
+    module = {"expression-plant": expression, "signal-source": signals, ltv.OBSERVER_KIND: ltv, ltv.PLANT_KIND: ltv,
+              "noise-source": noise, "added-noise": noise}.get(
         definition.kind, sources if definition.kind.removesuffix("-source") in sources.SOURCE_KINDS else None)
     if definition.kernels == "python" or module is None:
         return None
+    own = getattr(module, "kernel_c_source", None)
+    if own is not None and (written := own(definition)) is not None:
+        return written
     from obsfmu.observers.expressions_c import c_source
 
     made = module.kernel_expressions(definition)
     if made is None:
         return None
     functions, names = made
-    symbols = dict(zip(("f", "h", "l", "c"), SYMBOLS))
+    symbols = dict(zip(("f", "h", "l", "c", "v"), SYMBOLS))
     if isinstance(names, dict):
         names = {symbols[key]: value for key, value in names.items()}
     return c_source({symbols[key]: texts for key, texts in functions.items()}, names)

@@ -60,13 +60,17 @@ def test_ship_scenario_equals_python_path(monkeypatch, build_dir, order, couplin
 
 
 @pytest.mark.parametrize("example, stop", [("dcmotor", 0.5), ("chirp_noisy", 1.0), ("pendulum", 1.0),
-                                           ("state_affine_vanderpol", 2.0)])
-def test_examples_with_linear_blocks_equal_python_path(monkeypatch, build_dir, example, stop):
-    """The examples whose LTI plants, observers, state feedback, sources and expression plants get a kernel, next to
-    blocks without one (noise, the state-affine observer): the same numbers on both paths (the expression plant of
-    the Van der Pol example bit for bit: its kernel has no BLAS call)."""
+                                           ("state_affine_vanderpol", 2.0), ("gpebo_fullgamma", 10.0),
+                                           ("gpebo_shift3", 10.0), ("uio_rotating_gain", 1.0), ("uio_third_order", 1.0),
+                                           ("state-affine-chemostat", 1.0), ("state-affine-pendulum", 1.0),
+                                           ("discrete-gpebo", 10.0), ("uio-ftdrem", 1.0)])
+def test_examples_and_scenarios_equal_python_path(monkeypatch, build_dir, example, stop):
+    """Every example and scenario whose LTI plants, observers, state feedback, sources, noise and expression plants
+    get a kernel, next to blocks without one (the adaptive observers of papers 000, 003, 004): the same numbers on
+    both paths (paper 001's and 002's are compared below and above; measured: the others bit for bit)."""
     path = ROOT / "examples" / f"{example}.toml"
-    fast, slow = both_paths(monkeypatch, lambda: obsfmu.run(path, stop_time=stop, build_dir=build_dir))
+    target = path if path.is_file() else example
+    fast, slow = both_paths(monkeypatch, lambda: obsfmu.run(target, stop_time=stop, build_dir=build_dir))
     assert_same_columns(fast, slow, [c for c in fast.columns if c != "time"])
 
 
@@ -219,12 +223,13 @@ def test_expression_budget_refused_by_the_python_path(monkeypatch, expression_fm
 def test_signal_source_equals_python_path(monkeypatch, tmp_path):
     """The signal source (two sines, a step at 0.13 s, a decaying exponential) steps in C -- its waveform compiled
     to C when the FMU is built -- with the Python path's values (numpy's sin and exp against the C library's: within
-    1e-12 of the largest); with noise it steps in Python (numpy's random stream)."""
+    1e-12 of the largest); with noise too, whose draws are numpy's (observers/random_stream.py): the noisy source
+    minus the clean one is ``noise_std`` times ``default_rng((noise_seed, k)).standard_normal()``."""
     from obsfmu.fmus.builder import build_fmu
     from obsfmu.fmus.runtime.kinds.signals import source_definition
     fmus = {noise: build_fmu(source_definition(f"source_{int(noise * 10)}", sines=2, offset=0.5, amplitude=[1.0, -0.3],
                                                omega=[2.0, 31.0], phase=[0.1, 1.0], step_time=0.13, step_height=2.0,
-                                               exp_amplitude=0.7, exp_rate=3.0, noise_std=noise), tmp_path)
+                                               exp_amplitude=0.7, exp_rate=3.0, noise_std=noise, noise_seed=7), tmp_path)
             for noise in (0.0, 0.1)}
 
     fast, slow = both_paths(monkeypatch, stepped(fmus[0.0], 1e-2, 50))
@@ -232,8 +237,28 @@ def test_signal_source_equals_python_path(monkeypatch, tmp_path):
     assert_same_columns(fast, slow, ["rows"])
     assert abs(fast["rows"][13, 0] - slow["rows"][12, 0]) > 1.0             # the step is in it (at t = 0.14 s)
     noisy, reference = both_paths(monkeypatch, stepped(fmus[0.1], 1e-2, 50))
-    assert not noisy["in C"]
-    np.testing.assert_array_equal(noisy["rows"], reference["rows"])
+    assert noisy["in C"] and not reference["in C"]
+    assert_same_columns(noisy, reference, ["rows"])
+    draws = [0.1 * np.random.default_rng((7, 10 * (i + 1))).standard_normal() for i in range(50)]   # noise_dt 1e-3
+    np.testing.assert_allclose(noisy["rows"][:, 0] - fast["rows"][:, 0], draws, rtol=0, atol=1e-14)
+
+
+@pytest.mark.parametrize("kind, settings", [
+    ("noise_source", {"size": 2, "std": 0.3, "sample_interval": 2.5e-3, "seed": 11}),
+    ("noise_source", {"distribution": "uniform", "std": 2.0, "sample_interval": 1e-2, "seed": 2 ** 40 + 1}),
+    ("added_noise", {"size": 2, "std": 0.05, "sample_interval": 1e-2, "seed": 3}),
+    ("added_noise", {"std": 0.0, "seed": 3}), ("noise_source", {"cutoff_hz": 5.0, "seed": 1})])
+def test_noise_equals_python_path_draw_for_draw(monkeypatch, tmp_path, kind, settings):
+    """White noise (Gaussian and uniform, one and two streams, alone and added to a connection, std 0) steps in C,
+    its draws numpy's to the bit (observers/random_stream.py); band-limited noise (its filter) steps in Python."""
+    from obsfmu.fmus.builder import build_fmu
+    from obsfmu.fmus.runtime.kinds import noise
+    fmu = build_fmu(getattr(noise, f"{kind}_definition")(kind, **settings), tmp_path)
+
+    fast, slow = both_paths(monkeypatch, stepped(fmu, 1e-2, 60))
+    assert fast["in C"] == ("cutoff_hz" not in settings) and not slow["in C"]
+    np.testing.assert_array_equal(fast["rows"], slow["rows"])
+    assert np.unique(fast["rows"]).size > 50 or settings["std"] == 0.0
 
 
 @pytest.mark.parametrize("family, settings", [
@@ -245,18 +270,28 @@ def test_signal_source_equals_python_path(monkeypatch, tmp_path):
     ("chirp", {"f0_hz": 1.0, "f1_hz": 5.0, "t1": 0.4}),
     ("chirp", {"f0_hz": 1.0, "f1_hz": 20.0, "t0": 0.1, "t1": 0.3, "sweep": "exponential", "after": "stop",
                "phase": 0.3, "offset": 0.2}),
-    ("square", {"period": 0.07, "duty": 0.3, "amplitude": 2.0, "offset": 0.5}), ("prbs", {"seed": 3})])
+    ("square", {"period": 0.07, "duty": 0.3, "amplitude": 2.0, "offset": 0.5}),
+    ("prbs", {"seed": 3, "bit_period": 0.03}), ("prbs", {"seed": 2 ** 31 + 5, "register_length": 32, "bit_period": 0.01,
+                                                         "amplitude": 0.5, "offset": 1.0}),
+    ("table", {"times": [0.05, 0.1, 0.25, 0.3], "values": [1.0, -2.0, 0.5, 3.0]}),
+    ("table", {"times": [0.05, 0.1, 0.25, 0.3], "values": [1.0, -2.0, 0.5, 3.0], "interpolation": "previous"}),
+    ("table", {"times": [0.2], "values": [4.0]})])
 def test_waveform_sources_equal_python_path(monkeypatch, tmp_path, family, settings):
-    """The waveform sources whose value is an expression step in C with the Python path's values (the chirp with
-    both sweeps, before, during and after them; the square wave across its edges); a PRBS (its register's bits,
-    no expression) steps in Python."""
+    """Every waveform source steps in C with the Python path's values: those whose value is an expression (the chirp
+    with both sweeps, before, during and after them; the square wave across its edges), the PRBS (its register's
+    bits by the same arithmetic over GF(2), 7 and 32 bits) and the tables (numpy's interp before, at, between and
+    after the break points, and the previous value) -- C of their own (Source.c_value)."""
     from obsfmu.fmus.builder import build_fmu
     from obsfmu.fmus.runtime.kinds import sources
     fmu = build_fmu(getattr(sources, f"{family}_source_definition")(f"{family}_source", **settings), tmp_path)
 
     fast, slow = both_paths(monkeypatch, stepped(fmu, 1e-2, 50))
-    assert fast["in C"] == (family != "prbs") and not slow["in C"]
+    assert fast["in C"] and not slow["in C"]
     assert_same_columns(fast, slow, ["rows"])
+    if family in ("prbs", "table"):
+        np.testing.assert_array_equal(fast["rows"], slow["rows"])
+        levels = np.unique(fast["rows"]).size           # both levels; every value a table's linear pieces pass
+        assert levels == 2 if family == "prbs" else levels >= min(len(settings["times"]), 4)
 
 
 # ------------------------------------------------------------------ paper 001: the adaptive observer (least squares), the plant
@@ -288,6 +323,26 @@ def test_paper_001_equals_python_path(monkeypatch, build_dir, target, stop, tole
     to 1e-10 and 1e-6 (measured: 5.1e-13, 3.3e-14, 2.6e-13, 9.0e-10; 1.3e-11, 1.9e-13, 4.4e-11, 1.6e-8)."""
     fast, slow = both_paths(monkeypatch, lambda: obsfmu.run(target, stop_time=stop, build_dir=build_dir))
     assert_paper_001_agrees(fast, slow, tolerance, eigenvalue)
+
+
+def test_paper_001_plant_with_measurement_noise_equals_python_path(monkeypatch, build_dir, paper_001):
+    """The plant's measurement noise v(t) (noise_std, noise_dt, noise_seed) is numpy's stream compiled into its kernel
+    library (observers/random_stream.py): the plant steps in C, and y - C^T x is the Python path's noise, draw for
+    draw, ``noise_std`` times ``default_rng((noise_seed, k)).standard_normal()``."""
+    noise = {"plant.noise_std": 0.05, "plant.noise_dt": 1e-2, "plant.noise_seed": 3}
+    fast, slow = both_paths(monkeypatch, lambda: obsfmu.run("ltv-ls", stop_time=1.0, set=noise, build_dir=build_dir))
+    assert_paper_001_agrees(fast, slow, AGREEMENT, 1e-10)
+    v = np.asarray(fast["plant.y"]) - np.asarray(fast["plant.x[1]"])          # C = [1, 0]
+    k = np.maximum(np.floor(fast.time / 1e-2 + 1e-9), 0).astype(int)
+    draws = [0.05 * np.random.default_rng((3, int(i))).standard_normal() for i in k]
+    np.testing.assert_allclose(v, draws, rtol=0, atol=1e-12)
+    monkeypatch.delenv("OBSFMU_KERNELS", raising=False)
+    plant = Probe(paper_001["ltv_ls_plant"], "noisy", start={n.removeprefix("plant."): v for n, v in noise.items()})
+    drive(plant, 0, 50)
+    assert IN_C in plant.messages()
+    y, x1 = plant.get(["y", "x[1]"])
+    assert y - x1 == pytest.approx(0.05 * np.random.default_rng((3, 5)).standard_normal(), abs=1e-12)   # t = 0.05
+    plant.free()
 
 
 def assert_paper_001_agrees(fast, slow, tolerance, eigenvalue):

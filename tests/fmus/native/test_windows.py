@@ -306,22 +306,31 @@ def designs_dual(mingw, tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def expression_dual(mingw, tmp_path_factory):
-    """An expression plant (a forced Duffing oscillator) for both platforms: its expressions compiled to C by
-    MinGW-w64 into its win64 kernel library (issue 39)."""
+    """An expression plant (a forced Duffing oscillator), white noise (numpy's random stream in C), a PRBS and a table
+    source for both platforms: their C compiled by MinGW-w64 into their win64 kernel libraries (issue 39)."""
     from obsfmu.fmus.builder import build_fmu
     from obsfmu.fmus.runtime.definition import experiment
+    from obsfmu.fmus.runtime.kinds import noise, sources
     from obsfmu.fmus.runtime.kinds.expression import expression_plant_definition
-    definition = expression_plant_definition("duffing_plant", ["x[2]", "-0.2 * x[2] + x[1] - x[1]^3 + 0.3 * sin(t)"],
-                                             ["x[1]", "atan2(x[2], 1) + min(x[1], 0.5)"], [1.0, 0.0])
-    definition.default_experiment = experiment(stop_time=1.0, step=1e-2)
-    fmu = build_fmu(definition, tmp_path_factory.mktemp("expression dual"), platforms=DUAL)
-    return {fmu.stem: fmu}
+    definitions = [
+        expression_plant_definition("duffing_plant", ["x[2]", "-0.2 * x[2] + x[1] - x[1]^3 + 0.3 * sin(t)"],
+                                    ["x[1]", "atan2(x[2], 1) + min(x[1], 0.5)"], [1.0, 0.0]),
+        noise.noise_source_definition("white_noise", std=0.5, sample_interval=1e-2, seed=4, size=2),
+        noise.added_noise_definition("uniform_noise", std=0.1, sample_interval=2e-2, seed=9, distribution="uniform"),
+        sources.prbs_source_definition("prbs_source", bit_period=3e-2, seed=5, register_length=9),
+        sources.table_source_definition("table_source", [0.1, 0.35, 0.5, 0.8], [0.0, 2.0, -1.0, 0.5])]
+    folder, built = tmp_path_factory.mktemp("expression dual"), {}
+    for definition in definitions:
+        definition.default_experiment = experiment(stop_time=1.0, step=1e-2)
+        fmu = build_fmu(definition, folder, platforms=DUAL)
+        built[fmu.stem] = fmu
+    return built
 
 
 #: the FMUs whose blocks step in the compiled kernel (issue 39)
 KERNEL_MODELS = ("ship_plant", "ship_observer", "ship_controller", "dcmotor_plant", "dcmotor_observer",
                  "dcmotor_controller", "designs_observer", "designs_controller", "duffing_plant", "ltv_ls_plant",
-                 "ltv_ls_observer")
+                 "ltv_ls_observer", "white_noise", "uniform_noise", "prbs_source", "table_source")
 
 
 def fmpy_jobs(fmus: dict[str, Path], folder: Path, as_path) -> list[dict]:
@@ -371,7 +380,8 @@ def _result(folder: Path, model: str) -> np.ndarray:
 @pytest.mark.parametrize("model", sorted({m for s in SCENARIOS.values() for _, m, _ in s.components}
                                          | {f"dcmotor_{c}" for c in ("plant", "reference", "target", "observer",
                                                                      "controller")}
-                                         | {"designs_observer", "designs_controller", "duffing_plant"}))
+                                         | {"designs_observer", "designs_controller", "duffing_plant", "white_noise",
+                                            "uniform_noise", "prbs_source", "table_source"}))
 def test_fmpy_for_windows_runs_each_fmu_like_fmpy_on_linux(fmpy_runs, model):
     _, outcome = fmpy_runs
     windows, linux = _result(outcome["windows"], model), _result(outcome["linux"], model)
