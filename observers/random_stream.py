@@ -48,6 +48,7 @@ INVERSE_R = 0.27366123732975827203338247596
 #: PCG64's multiplier (the 128-bit LCG of O'Neill's reference)
 MULTIPLIER = 0x2360ED051FC65DA44385DF649FCCF645
 _MASK128 = (1 << 128) - 1
+_INVERSE_MULTIPLIER = pow(MULTIPLIER, -1, 1 << 128)
 
 
 def _whole(value: float, high: float) -> bool:
@@ -72,18 +73,17 @@ def rand(seed: float, k: float, j: float) -> float:
     return math.nan if generator is None else float(generator.random(int(j) + 1)[int(j)])
 
 
-def _normal_after(raw: int) -> tuple[float, bool]:
+def _normal_after(raw: int, probe: np.random.Generator) -> tuple[float, bool]:
     """numpy's ``standard_normal()`` when PCG64's next output is ``raw``, and whether it took only that draw.
 
     PCG64 steps its state ``s -> M s + c`` and outputs ``rotr64(hi ^ lo, hi >> 58)`` of the new state; a new
     state ``(hi, lo) = (0, raw)`` outputs ``raw``, so the state before is ``(raw - c) / M`` (mod 2^128)."""
-    generator = np.random.PCG64(0)
     increment = 1
-    before = ((raw - increment) * pow(MULTIPLIER, -1, 1 << 128)) & _MASK128
-    generator.state = {"bit_generator": "PCG64", "state": {"state": before, "inc": increment},
-                       "has_uint32": 0, "uinteger": 0}
-    value = float(np.random.Generator(generator).standard_normal())
-    return value, generator.state["state"]["state"] == raw
+    before = ((raw - increment) * _INVERSE_MULTIPLIER) & _MASK128
+    probe.bit_generator.state = {"bit_generator": "PCG64", "state": {"state": before, "inc": increment},
+                                 "has_uint32": 0, "uinteger": 0}
+    value = float(probe.standard_normal())
+    return value, probe.bit_generator.state["state"]["state"] == raw
 
 
 @functools.cache
@@ -94,12 +94,13 @@ def ziggurat_tables() -> np.ndarray:
     A draw ``r`` gives the layer ``i = r & 255``, the sign ``(r >> 8) & 1`` and the magnitude ``a = (r >> 9) &
     (2^52 - 1)``; the sample is ``+-a w_i``, at once when ``a < k_i``."""
     thresholds, widths = np.zeros(256), np.zeros(256)
+    probe = np.random.Generator(np.random.PCG64(0))
     for layer in range(256):
-        widths[layer], _ = _normal_after((1 << 9) | layer)          # magnitude 1, sign +: the sample is w_i
+        widths[layer], _ = _normal_after((1 << 9) | layer, probe)   # magnitude 1, sign +: the sample is w_i
         low, high = 0, 1 << 52                                      # the first magnitude that takes a second draw
         while low < high:
             middle = (low + high) // 2
-            if _normal_after((middle << 9) | layer)[1]:
+            if _normal_after((middle << 9) | layer, probe)[1]:
                 low = middle + 1
             else:
                 high = middle

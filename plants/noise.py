@@ -21,9 +21,11 @@ output at ``k dt``, held.  ``x_0`` has the stationary covariance ``P = Ad P Ad' 
 ``z_k`` is ``P[0, 0]`` from the start (first order: ``std^2 (1 - a) / (1 + a)``, ``a = exp(-wc dt)``).
 
 Choice (stateless with a cache): ``z_k`` depends on ``w_0 .. w_{k-1}``, so it is computed by the
-recurrence from ``x_0``.  The block keeps the last state reached and a checkpoint every
-:data:`CHECKPOINT` intervals; evaluating earlier restarts from the checkpoint before it and runs the
-same recurrence, so every ``z_k`` is bit-for-bit the same whatever the order of evaluation.  The
+recurrence from ``x_0``, term by term in a fixed order (:func:`filter_step`: no BLAS, whose sums may differ from
+machine to machine; the compiled step kernel sums the same terms in the same order).  The block keeps the last
+state reached and a checkpoint every :data:`CHECKPOINT` intervals; evaluating earlier restarts from the latest
+checkpoint before it and runs the same recurrence, so every ``z_k`` is bit-for-bit the same whatever the order of
+evaluation.  The
 cache is not block state (``not_state``).  Cost: ``O(k)`` the first time interval ``k`` is reached,
 ``O(1)`` per step when the time goes forward, at most :data:`CHECKPOINT` intervals after a rollback.
 """
@@ -39,11 +41,11 @@ from obsfmu.observers.block import Block, Segment
 from obsfmu.observers.checks import ParameterError, require_positive
 from obsfmu.observers.integrators import BudgetError, expm
 
-from obsfmu.observers.kernel_forms import ExpressionForm
+from obsfmu.observers.kernel_forms import ExpressionForm, PackedForm
 
 from .sources.base import BOUNDARY_TOLERANCE, integer_parameter, interval_index
 
-__all__ = ["CHECKPOINT", "Noise", "NoiseSource", "AddedNoise"]
+__all__ = ["CHECKPOINT", "Noise", "NoiseSource", "AddedNoise", "filter_step"]
 
 #: intervals between two saved filter states
 CHECKPOINT = 256
@@ -60,6 +62,15 @@ def _discrete_low_pass(cutoff_hz: float, order: int, dt: float) -> tuple[np.ndar
     augmented[:order, :order], augmented[:order, order:] = A * dt, B * dt
     exponential = expm(augmented)
     return exponential[:order, :order], exponential[:order, order:]
+
+
+def filter_step(Ad: np.ndarray, Bd: np.ndarray, x: np.ndarray, white: np.ndarray) -> np.ndarray:
+    """``x_{k+1} = Ad x_k + Bd w_k`` (``x``: order x streams), each entry summed in a fixed order:
+    ``((Ad[i, 0] x[0] + Ad[i, 1] x[1]) + Bd[i] w)`` -- the compiled kernel's order (``fmus/native/kernel_noise.h``)."""
+    total = Ad[:, :1] * x[:1]
+    for column in range(1, Ad.shape[1]):
+        total = total + Ad[:, column:column + 1] * x[column:column + 1]
+    return total + Bd * white
 
 
 def stationary_covariance(Ad: np.ndarray, Bd: np.ndarray, variance: float) -> np.ndarray:
@@ -144,15 +155,15 @@ class Noise:
             self._last = (0, self._initial_state())
             self._checkpoints[0] = self._last[1]
         reached, x = self._last
-        if k < reached:
-            reached = (k // CHECKPOINT) * CHECKPOINT
+        if k < reached:                          # the latest checkpoint before k (a compiled kernel keeps none)
+            reached = max(c for c in self._checkpoints if c <= k)
             x = self._checkpoints[reached]
         if k - reached > self.interval_budget:
             raise BudgetError(f"interval_budget: interval {k} needs {k - reached} filter steps from interval "
                               f"{reached}, more than the budget of {self.interval_budget}")
         Ad, Bd = self.filter
         while reached < k:
-            x = Ad @ x + Bd * self.white(reached)
+            x = filter_step(Ad, Bd, x, self.white(reached))
             reached += 1
             if reached % CHECKPOINT == 0:
                 self._checkpoints.setdefault(reached, x)
@@ -173,17 +184,40 @@ class Noise:
         ``low = -sqrt 3`` and ``high - low``."""
         return np.array([self.std, self.dt, self.seed, -math.sqrt(3.0), math.sqrt(3.0) - -math.sqrt(3.0)])
 
-    def expression(self, stream: int) -> str | None:
-        """Stream ``stream`` of :meth:`__call__` (white noise) in the expression language of ``t`` and ``p`` =
+    def expression(self, stream: int, index: str | None = None) -> str:
+        """Stream ``stream`` of the white sample ``w_k`` in the expression language of ``t`` and ``p`` =
         :meth:`parameters`, the same draws of the same stream (:mod:`observers.random_stream`), the same operations
-        in the same order: compiled to C, the step kernel's output (issue 39).  None when band-limited (its filter
-        steps in Python).  A sample index beyond ``2^53`` (``t / dt`` beyond 9e15) is NaN in the expression."""
-        if self.filter is not None:
-            return None
-        k = f"clip(floor(t / p[2] + {BOUNDARY_TOLERANCE!r}), 0, {2.0 ** 62!r})"        # interval_index
+        in the same order: compiled to C (issue 39), white noise's output.  ``k`` is :func:`interval_index` of
+        ``t``, or the expression ``index`` (``"t"``: the compiled filter passes ``k`` as ``t``).  A sample index
+        beyond ``2^53`` (``t / dt`` beyond 9e15) is NaN in the expression."""
+        k = index or f"clip(floor(t / p[2] + {BOUNDARY_TOLERANCE!r}), 0, {2.0 ** 62!r})"     # interval_index
         draw = f"randn(p[3], {k}, {stream})" if self.distribution == "gaussian" else \
             f"(p[4] + p[5] * rand(p[3], {k}, {stream}))"                             # numpy's uniform(low, high)
         return f"where(p[1] == 0, 0, p[1] * {draw})"
+
+    def filter_form(self, inputs: tuple[str, ...]) -> PackedForm:
+        """The compiled kernel's form of band-limited noise (``fmus/native/kernel_noise.h``): the cache's last state
+        ``(k, x_k)`` packed, the recurrence :func:`filter_step` in C, ``w_k`` from the kernel library
+        (:meth:`expression` of ``k``).  The kernel only goes forward: an earlier interval, or more than
+        ``interval_budget`` filter steps, is Python's (its checkpoints, its refusal)."""
+        Ad, Bd = self.filter
+        order = Ad.shape[0]
+
+        def pack() -> np.ndarray:
+            if self._last is None:
+                self.filtered_state(0)
+            k, x = self._last
+            return np.concatenate([[float(k)], x.ravel()])
+
+        def unpack(vector: np.ndarray) -> None:
+            self._last = (int(vector[0]), vector[1:].reshape(order, self.size).copy())
+
+        white = self.parameters()
+        settings = {"order": order, "streams": self.size, "budget": float(self.interval_budget), "dt": self.dt,
+                    "input_u": -1.0, "p_Ad": white.size, "p_Bd": white.size + order * order, "x_longest": 0.0,
+                    "x_noted": 0.0, "x_size": 0.0}
+        return PackedForm("noise-filter", 1 + order * self.size, inputs, ("y",), settings,
+                          np.concatenate([white, Ad.ravel(), Bd.ravel()]), pack, unpack)
 
 
 class NoiseSource(Block):
@@ -206,11 +240,11 @@ class NoiseSource(Block):
     def advance(self, t: float, h: float, inputs: Mapping[str, Segment]) -> None:
         """Nothing to integrate: the output is a function of time."""
 
-    def kernel_form(self) -> ExpressionForm | None:
-        """The compiled kernel's form of white noise: no state, the outputs :meth:`Noise.expression` (plus ``u``);
-        band-limited noise steps in Python."""
+    def kernel_form(self) -> ExpressionForm | PackedForm:
+        """The compiled kernel's form: of white noise no state, the outputs :meth:`Noise.expression` (plus ``u``);
+        of band-limited noise :meth:`Noise.filter_form`."""
         if self.noise.filter is not None:
-            return None
+            return self.noise.filter_form(tuple(self.input_sizes))
         return ExpressionForm("", 0, tuple(self.input_sizes), self.noise.parameters(), (math.inf, 1.0, 1.0, 1.0),
                               outputs=("y",))
 

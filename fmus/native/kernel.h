@@ -15,6 +15,8 @@
  *   KK_LTV, KK_LTV_PLANT (kernel_ltv.h: paper 001's adaptive observer with least squares, and its plant): the
  *     block's whole state packed into x (observers/ltv/kernel.py), its step written again in C; A(t), L(t), f(y, t)
  *     and C(t) are the FMU's compiled expressions.
+ *   KK_NOISE_FILTER (kernel_noise.h: band-limited noise): the filter's recurrence over the white samples, which
+ *     are the FMU's compiled expressions of numpy's random stream.
  *
  * The input segments are built as the Python slave builds them (fmus/runtime/slave/step.py): a port given a
  * derivative follows it; otherwise its <port>_interpolation mode: hold, extrapolate from the previous
@@ -51,7 +53,7 @@ enum {
     KL_PHI, KL_G0, KL_G1, KL_H, KL_BOUND, KL_VALUES, KL_P, KL_SETTINGS, KL_SCRATCH, KL_SIZE, KL_HEADER
 };
 /* kinds of kernel */
-enum { KK_AFFINE = 1, KK_EXPRESSION = 2, KK_LTV = 3, KK_LTV_PLANT = 4 };
+enum { KK_AFFINE = 1, KK_EXPRESSION = 2, KK_LTV = 3, KK_LTV_PLANT = 4, KK_NOISE_FILTER = 5 };
 /* classes of a value reference (the layout's table) */
 enum { KV_PYTHON, KV_INPUT, KV_OUTPUT, KV_VALUE, KV_INTEGER };
 /* <port>_interpolation (fmus.runtime.slave.common.InputMode) */
@@ -75,7 +77,8 @@ typedef struct {
     int slot;                            /* of the matrices: the one of the last step, or the one to fill next */
 } KernelImage;
 
-#include "kernel_ltv.h" /* KK_LTV, KK_LTV_PLANT: paper 001's adaptive observer and plant */
+#include "kernel_ltv.h"   /* KK_LTV, KK_LTV_PLANT: paper 001's adaptive observer and plant */
+#include "kernel_noise.h" /* KK_NOISE_FILTER: band-limited noise */
 
 /* The doubles each field of the image holds (KL_TIME .. KL_SCRATCH) for these sizes. */
 static size_t kernel_field_size(const KernelImage *k, int field)
@@ -95,7 +98,9 @@ static size_t kernel_field_size(const KernelImage *k, int field)
     case KL_H: return affine * OBSFMU_KERNEL_SLOTS;
     case KL_VALUES: return k->variables;
     case KL_P: return k->parameters;
-    case KL_SETTINGS: return affine ? 0 : k->kind == KK_LTV ? KT_COUNT : k->kind == KK_LTV_PLANT ? KQ_COUNT : KS_COUNT;
+    case KL_SETTINGS:
+        return affine ? 0 : k->kind == KK_LTV ? KT_COUNT : k->kind == KK_LTV_PLANT ? KQ_COUNT
+                          : k->kind == KK_NOISE_FILTER ? KN_COUNT : KS_COUNT;
     case KL_SCRATCH: return n + 2 * W + m + q + 7 * n + m;
     default: return 0;
     }
@@ -106,7 +111,7 @@ static int kernel_bind(KernelImage *k, double *memory, size_t memory_size, const
 {
     memset(k, 0, sizeof *k);
     if (layout_size < KL_HEADER || layout[KL_ABI] != OBSFMU_KERNEL_ABI || layout[KL_SIZE] != (int64_t)memory_size ||
-        layout[KL_KIND] < KK_AFFINE || layout[KL_KIND] > KK_LTV_PLANT)
+        layout[KL_KIND] < KK_AFFINE || layout[KL_KIND] > KK_NOISE_FILTER)
         return -1;
     for (int field = KL_N; field < KL_HEADER; field++)
         if (layout[field] < 0 || layout[field] > (int64_t)memory_size) return -1;
@@ -137,7 +142,9 @@ static int kernel_bind(KernelImage *k, double *memory, size_t memory_size, const
             ((kind == KV_VALUE || kind == KV_INTEGER) && (size_t)index != i))
             return -1;
     }
-    if ((k->kind == KK_LTV && !kt_fits(k)) || (k->kind == KK_LTV_PLANT && !kq_fits(k))) return -1;
+    if ((k->kind == KK_LTV && !kt_fits(k)) || (k->kind == KK_LTV_PLANT && !kq_fits(k)) ||
+        (k->kind == KK_NOISE_FILTER && !kn_fits(k)))
+        return -1;
     return 0;
 }
 
@@ -208,13 +215,23 @@ static int kernel_set_derivatives(KernelImage *k, const unsigned vr[], size_t nv
     return 1;
 }
 
-/* y = A x (+ y when add), A rows x columns, row-major */
+/* y = A x (+ y when add), A rows x columns, row-major.  Each row's sum is 0 + A[i][0] x[0] + A[i][1] x[1] + ..., in
+ * that order, as a plain dot product; but the sums of a block of rows are carried together, column by column, so
+ * that no addition waits for the one before it (a dot product is a chain of dependent additions: ~4 cycles each,
+ * 10 us for three 50 x 50 products a step). */
+#define KERNEL_ROWS 64
 static void kernel_product(const double *A, const double *x, size_t rows, size_t columns, double *y, int add)
 {
-    for (size_t i = 0; i < rows; i++) {
-        double sum = 0.0;
-        for (size_t j = 0; j < columns; j++) sum += A[i * columns + j] * x[j];
-        y[i] = add ? y[i] + sum : sum;
+    double sum[KERNEL_ROWS];
+    for (size_t first = 0; first < rows; first += KERNEL_ROWS) {
+        size_t count = rows - first < KERNEL_ROWS ? rows - first : KERNEL_ROWS;
+        const double *block = A + first * columns;
+        for (size_t i = 0; i < count; i++) sum[i] = 0.0;
+        for (size_t j = 0; j < columns; j++) {
+            double xj = x[j];
+            for (size_t i = 0; i < count; i++) sum[i] += block[i * columns + j] * xj;
+        }
+        for (size_t i = 0; i < count; i++) y[first + i] = add ? y[first + i] + sum[i] : sum[i];
     }
 }
 
@@ -224,6 +241,7 @@ static int kernel_outputs(const KernelImage *k, double t, const double *x, const
 {
     if (k->kind == KK_LTV) return kt_outputs(k, x, out);
     if (k->kind == KK_LTV_PLANT) return kq_outputs(k, t, x, out);
+    if (k->kind == KK_NOISE_FILTER) return kn_outputs(k, t, x, w, out);
     if (k->kind == KK_EXPRESSION) {
         size_t q = k->q - k->n;
         k->g(t, x, w, k->p, out);
@@ -419,7 +437,8 @@ static int kernel_step(KernelImage *k, double t, double h)
     int taken = k->kind == KK_AFFINE ? kernel_affine(k, h, w0, dw, next)
                 : k->kind == KK_EXPRESSION ? kernel_expression(k, t, h, w0, dw, next, work)
                 : k->kind == KK_LTV        ? kernel_ltv(k, t, h, w0, dw, next, work)
-                                           : kernel_ltv_plant(k, t, h, w0, dw, next, work);
+                : k->kind == KK_LTV_PLANT  ? kernel_ltv_plant(k, t, h, w0, dw, next, work)
+                                           : kernel_noise_filter(k, t, h, next);
     if (taken <= 0) return taken;
     if (kernel_outputs(k, t + h, next, end, out) && next[(size_t)k->settings[KT_X_NOTED]] == 0.0)
         return 0; /* converged held at 0 by the step for the first time: the slave says so (in Python) */

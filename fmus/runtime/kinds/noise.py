@@ -36,12 +36,13 @@ def _added_noise(p, options):
     return AddedNoise(_noise(p, options))
 
 
-def kernel_expressions(definition: FmuDefinition) -> tuple[dict[str, list[str]], Names] | None:
-    """The compiled kernel's expressions of white noise (no state: ``f`` empty; ``h`` each stream, plus ``u`` on a
-    connection) and their names; None when band-limited (it steps in Python)."""
+def kernel_expressions(definition: FmuDefinition) -> tuple[dict[str, list[str]], Names]:
+    """The compiled kernel's expressions and their names: of white noise (no state: ``f`` empty) ``h`` each stream,
+    plus ``u`` on a connection; of band-limited noise ``h`` the white samples ``w_k`` of ``k`` passed as ``t``
+    (its filter's recurrence is the kernel's, ``fmus/native/kernel_noise.h``)."""
     noise = _noise({p.name: p.array(p.value) for p in definition.parameters}, definition.options)
-    if noise.expression(0) is None:
-        return None
+    if noise.filter is not None:
+        return {"f": [], "h": [noise.expression(j, "t") for j in range(noise.size)]}, Names(p=noise.parameters().size)
     added = definition.kind == "added-noise"
     streams = [("u[{}] + " if added else "").format(j + 1) + noise.expression(j) for j in range(noise.size)]
     return {"f": [], "h": streams}, Names(u=noise.size if added else 0, p=noise.parameters().size)

@@ -41,10 +41,10 @@ __all__ = ["Kernels", "KERNEL_ABI", "HEADER", "SYMBOLS", "kernel_source"]
 
 #: the version of the image's layout, checked by the bridge (= OBSFMU_KERNEL_ABI in fmus/native/kernel.h)
 KERNEL_ABI = 4
-#: the kinds of kernel (= KK_AFFINE, KK_EXPRESSION, KK_LTV, KK_LTV_PLANT)
-AFFINE, EXPRESSION, LTV, LTV_PLANT = 1, 2, 3, 4
+#: the kinds of kernel (= KK_AFFINE, KK_EXPRESSION, KK_LTV, KK_LTV_PLANT, KK_NOISE_FILTER)
+AFFINE, EXPRESSION, LTV, LTV_PLANT, NOISE_FILTER = 1, 2, 3, 4, 5
 #: a packed form's kind -> its kernel
-PACKED = {"ltv-observer": LTV, "ltv-plant": LTV_PLANT}
+PACKED = {"ltv-observer": LTV, "ltv-plant": LTV_PLANT, "noise-filter": NOISE_FILTER}
 #: the functions of an FMU's kernel library (= OBSFMU_KERNEL_F, _G, _L, _C, _V): an expression plant's f and h, a
 #: source's value (h), paper 001's observer's and plant's f(y, t), A(t), (observer) L(t) and C(t), (plant) the
 #: measurement noise v(t)

@@ -247,16 +247,20 @@ def test_signal_source_equals_python_path(monkeypatch, tmp_path):
     ("noise_source", {"size": 2, "std": 0.3, "sample_interval": 2.5e-3, "seed": 11}),
     ("noise_source", {"distribution": "uniform", "std": 2.0, "sample_interval": 1e-2, "seed": 2 ** 40 + 1}),
     ("added_noise", {"size": 2, "std": 0.05, "sample_interval": 1e-2, "seed": 3}),
-    ("added_noise", {"std": 0.0, "seed": 3}), ("noise_source", {"cutoff_hz": 5.0, "seed": 1})])
+    ("added_noise", {"std": 0.0, "seed": 3}),
+    ("noise_source", {"cutoff_hz": 5.0, "seed": 1, "sample_interval": 2e-3}),
+    ("added_noise", {"cutoff_hz": 3.0, "filter_order": 2, "size": 3, "sample_interval": 5e-3, "distribution": "uniform"}),
+    ("added_noise", {"cutoff_hz": 3.0, "std": 0.0})])
 def test_noise_equals_python_path_draw_for_draw(monkeypatch, tmp_path, kind, settings):
-    """White noise (Gaussian and uniform, one and two streams, alone and added to a connection, std 0) steps in C,
-    its draws numpy's to the bit (observers/random_stream.py); band-limited noise (its filter) steps in Python."""
+    """Noise steps in C, its values the Python path's to the bit: white (Gaussian and uniform, one and two streams,
+    alone and added to a connection, std 0), its draws numpy's (observers/random_stream.py); band-limited (first
+    and second order, three streams), its filter summed in the Python path's order (plants.noise.filter_step)."""
     from obsfmu.fmus.builder import build_fmu
     from obsfmu.fmus.runtime.kinds import noise
     fmu = build_fmu(getattr(noise, f"{kind}_definition")(kind, **settings), tmp_path)
 
     fast, slow = both_paths(monkeypatch, stepped(fmu, 1e-2, 60))
-    assert fast["in C"] == ("cutoff_hz" not in settings) and not slow["in C"]
+    assert fast["in C"] and not slow["in C"]
     np.testing.assert_array_equal(fast["rows"], slow["rows"])
     assert np.unique(fast["rows"]).size > 50 or settings["std"] == 0.0
 
@@ -292,6 +296,28 @@ def test_waveform_sources_equal_python_path(monkeypatch, tmp_path, family, setti
         np.testing.assert_array_equal(fast["rows"], slow["rows"])
         levels = np.unique(fast["rows"]).size           # both levels; every value a table's linear pieces pass
         assert levels == 2 if family == "prbs" else levels >= min(len(settings["times"]), 4)
+
+
+def test_band_limited_noise_state_moves_between_paths_and_back_in_time(monkeypatch, tmp_path):
+    """The filter's cache is no FMU state: a state restored in a fresh instance, or an earlier state restored in
+    the same one (the kernel only goes forward; Python restarts from its checkpoints), gives the same noise."""
+    from obsfmu.fmus.builder import build_fmu
+    from obsfmu.fmus.runtime.kinds import noise
+    fmu = build_fmu(noise.added_noise_definition("filtered", cutoff_hz=2.0, filter_order=2, size=2,
+                                                 sample_interval=1e-3, seed=8), tmp_path)
+    moved, reference, messages = moved_between_paths(fmu, monkeypatch)
+    assert IN_C in messages
+    np.testing.assert_array_equal(moved, reference)
+    instance = probe(fmu, "rollback", monkeypatch=monkeypatch)
+    drive(instance, 0, 100)
+    state, time = instance.slave.getFMUstate(), instance.t
+    drive(instance, 100, 200)
+    later = instance.outputs()
+    instance.slave.setFMUstate(state)
+    instance.t = time
+    drive(instance, 100, 200)
+    np.testing.assert_array_equal(instance.outputs(), later)
+    instance.free()
 
 
 # ------------------------------------------------------------------ paper 001: the adaptive observer (least squares), the plant

@@ -306,8 +306,8 @@ def designs_dual(mingw, tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def expression_dual(mingw, tmp_path_factory):
-    """An expression plant (a forced Duffing oscillator), white noise (numpy's random stream in C), a PRBS and a table
-    source for both platforms: their C compiled by MinGW-w64 into their win64 kernel libraries (issue 39)."""
+    """An expression plant (a forced Duffing oscillator), white and band-limited noise (numpy's random stream in C), a
+    PRBS and a table source for both platforms: their C compiled by MinGW-w64 into their win64 kernel libraries (issue 39)."""
     from obsfmu.fmus.builder import build_fmu
     from obsfmu.fmus.runtime.definition import experiment
     from obsfmu.fmus.runtime.kinds import noise, sources
@@ -317,6 +317,8 @@ def expression_dual(mingw, tmp_path_factory):
                                     ["x[1]", "atan2(x[2], 1) + min(x[1], 0.5)"], [1.0, 0.0]),
         noise.noise_source_definition("white_noise", std=0.5, sample_interval=1e-2, seed=4, size=2),
         noise.added_noise_definition("uniform_noise", std=0.1, sample_interval=2e-2, seed=9, distribution="uniform"),
+        noise.noise_source_definition("filtered_noise", sample_interval=2e-3, seed=6, size=2, cutoff_hz=4.0,
+                                      filter_order=2),
         sources.prbs_source_definition("prbs_source", bit_period=3e-2, seed=5, register_length=9),
         sources.table_source_definition("table_source", [0.1, 0.35, 0.5, 0.8], [0.0, 2.0, -1.0, 0.5])]
     folder, built = tmp_path_factory.mktemp("expression dual"), {}
@@ -330,7 +332,7 @@ def expression_dual(mingw, tmp_path_factory):
 #: the FMUs whose blocks step in the compiled kernel (issue 39)
 KERNEL_MODELS = ("ship_plant", "ship_observer", "ship_controller", "dcmotor_plant", "dcmotor_observer",
                  "dcmotor_controller", "designs_observer", "designs_controller", "duffing_plant", "ltv_ls_plant",
-                 "ltv_ls_observer", "white_noise", "uniform_noise", "prbs_source", "table_source")
+                 "ltv_ls_observer", "white_noise", "uniform_noise", "filtered_noise", "prbs_source", "table_source")
 
 
 def fmpy_jobs(fmus: dict[str, Path], folder: Path, as_path) -> list[dict]:
@@ -381,7 +383,7 @@ def _result(folder: Path, model: str) -> np.ndarray:
                                          | {f"dcmotor_{c}" for c in ("plant", "reference", "target", "observer",
                                                                      "controller")}
                                          | {"designs_observer", "designs_controller", "duffing_plant", "white_noise",
-                                            "uniform_noise", "prbs_source", "table_source"}))
+                                            "uniform_noise", "filtered_noise", "prbs_source", "table_source"}))
 def test_fmpy_for_windows_runs_each_fmu_like_fmpy_on_linux(fmpy_runs, model):
     _, outcome = fmpy_runs
     windows, linux = _result(outcome["windows"], model), _result(outcome["linux"], model)
