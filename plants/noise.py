@@ -25,9 +25,9 @@ recurrence from ``x_0``, term by term in a fixed order (:func:`filter_step`: no 
 machine to machine; the compiled step kernel sums the same terms in the same order).  The block keeps the last
 state reached and a checkpoint every :data:`CHECKPOINT` intervals; evaluating earlier restarts from the latest
 checkpoint before it and runs the same recurrence, so every ``z_k`` is bit-for-bit the same whatever the order of
-evaluation.  The
-cache is not block state (``not_state``).  Cost: ``O(k)`` the first time interval ``k`` is reached,
-``O(1)`` per step when the time goes forward, at most :data:`CHECKPOINT` intervals after a rollback.
+evaluation.  The cache is not block state (``not_state``).  Cost: ``O(k)`` the first time interval ``k`` is
+reached, ``O(1)`` per step when the time goes forward, at most :data:`CHECKPOINT` intervals after a rollback
+(more after the compiled kernel went forward: it keeps no checkpoints).
 """
 
 from __future__ import annotations

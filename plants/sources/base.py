@@ -76,8 +76,8 @@ class Source(Block):
     def c_value(self) -> str | None:
         """For a source no expression can say (a table's search, a register's bits): the C definition of
         ``static double source_value(double t, const double *p)`` (and of the static helpers it calls) computing
-        :meth:`value` from ``p`` = :meth:`parameters`, the same operations in the same order (compiled when the FMU is built, :func:`c_value_source`).  None: the
-        source has an :meth:`expression`, or steps in Python."""
+        :meth:`value` from ``p`` = :meth:`parameters`, the same operations in the same order (compiled when the FMU
+        is built, :func:`c_value_source`).  None: the source has an :meth:`expression`, or steps in Python."""
         return None
 
     def parameters(self) -> np.ndarray:

@@ -89,9 +89,8 @@ def _observer(p, options):
 def kernel_expressions(definition: FmuDefinition):
     """The compiled kernel's functions of the adaptive observer or the plant (``f`` the nonlinearities, ``h``
     ``A(t)``, ``l`` the observer's ``L(t)``, ``c`` a ``C(t)``, ``v`` the plant's measurement noise) and the names of
-    each; None when it steps in Python: a
-    function given as a ``module:function`` reference, or an observer's estimator other than least squares
-    (observers/ltv/kernel.py)."""
+    each; None when it steps in Python: a function given as a ``module:function`` reference, or an observer's
+    estimator other than least squares (observers/ltv/kernel.py)."""
     options = definition.options
     keys = (("f", "f"), ("h", "A")) + ((("l", "L"),) if definition.kind == OBSERVER_KIND else ()) \
         + ((("c", "C"),) if "C" in options else ())

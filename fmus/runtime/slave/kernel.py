@@ -129,8 +129,8 @@ class Kernels:
         put("previous_time", [record[p.name][1] for p in ports])
         if affine:
             C, D, e = self._output_matrices(form, n, m)
-            put("C", C)
-            put("D", D)
+            put("C", C.T)                                     # column by column (kernel_product)
+            put("D", D.T)
             put("e", e)
             put("h", np.nan)                                  # no matrices yet: the first step asks for them
         else:
@@ -202,7 +202,7 @@ class Kernels:
             return False
         for name, matrix in (("Phi", Phi), ("G0", G0), ("G1", G1)):
             start = offsets[name] + slot * matrix.size
-            memory[start:start + matrix.size] = matrix.ravel()
+            memory[start:start + matrix.size] = matrix.T.ravel()     # column by column (kernel_product)
         memory[offsets["h"] + slot] = h
         return True
 

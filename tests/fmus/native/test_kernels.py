@@ -227,10 +227,10 @@ def test_signal_source_equals_python_path(monkeypatch, tmp_path):
     minus the clean one is ``noise_std`` times ``default_rng((noise_seed, k)).standard_normal()``."""
     from obsfmu.fmus.builder import build_fmu
     from obsfmu.fmus.runtime.kinds.signals import source_definition
-    fmus = {noise: build_fmu(source_definition(f"source_{int(noise * 10)}", sines=2, offset=0.5, amplitude=[1.0, -0.3],
-                                               omega=[2.0, 31.0], phase=[0.1, 1.0], step_time=0.13, step_height=2.0,
-                                               exp_amplitude=0.7, exp_rate=3.0, noise_std=noise, noise_seed=7), tmp_path)
-            for noise in (0.0, 0.1)}
+    waveform = {"offset": 0.5, "amplitude": [1.0, -0.3], "omega": [2.0, 31.0], "phase": [0.1, 1.0],
+                "step_time": 0.13, "step_height": 2.0, "exp_amplitude": 0.7, "exp_rate": 3.0, "noise_seed": 7}
+    fmus = {noise: build_fmu(source_definition(f"source_{int(noise * 10)}", sines=2, noise_std=noise, **waveform),
+                             tmp_path) for noise in (0.0, 0.1)}
 
     fast, slow = both_paths(monkeypatch, stepped(fmus[0.0], 1e-2, 50))
     assert fast["in C"] and not slow["in C"]
@@ -249,7 +249,8 @@ def test_signal_source_equals_python_path(monkeypatch, tmp_path):
     ("added_noise", {"size": 2, "std": 0.05, "sample_interval": 1e-2, "seed": 3}),
     ("added_noise", {"std": 0.0, "seed": 3}),
     ("noise_source", {"cutoff_hz": 5.0, "seed": 1, "sample_interval": 2e-3}),
-    ("added_noise", {"cutoff_hz": 3.0, "filter_order": 2, "size": 3, "sample_interval": 5e-3, "distribution": "uniform"}),
+    ("added_noise", {"cutoff_hz": 3.0, "filter_order": 2, "size": 3, "sample_interval": 5e-3,
+                     "distribution": "uniform"}),
     ("added_noise", {"cutoff_hz": 3.0, "std": 0.0})])
 def test_noise_equals_python_path_draw_for_draw(monkeypatch, tmp_path, kind, settings):
     """Noise steps in C, its values the Python path's to the bit: white (Gaussian and uniform, one and two streams,

@@ -307,7 +307,8 @@ def designs_dual(mingw, tmp_path_factory):
 @pytest.fixture(scope="module")
 def expression_dual(mingw, tmp_path_factory):
     """An expression plant (a forced Duffing oscillator), white and band-limited noise (numpy's random stream in C), a
-    PRBS and a table source for both platforms: their C compiled by MinGW-w64 into their win64 kernel libraries (issue 39)."""
+    PRBS and a table source for both platforms: their C compiled by MinGW-w64 into their win64 kernel libraries
+    (issue 39)."""
     from obsfmu.fmus.builder import build_fmu
     from obsfmu.fmus.runtime.definition import experiment
     from obsfmu.fmus.runtime.kinds import noise, sources
