@@ -16,8 +16,11 @@ the FMU itself costs.
   ``ltv_ls_observer`` (paper 001's example, least squares, its ``A(t)``, ``L(t)``, ``f`` compiled to C) with its
   kernel and with ``--kernels python`` (fmusim's inputs stay 0: the same operations per step as in the scenario).
 
-And ``obsfmu run ship`` (the master, 50 000 steps of three FMUs) with and without kernels
-(``OBSFMU_KERNELS=python``), as wall time of the process.
+Through the project's master: CPU per communication step of ``ship`` and of the integrator chains of order 2..50
+(a signal source, the chain, its observer: benchmarks/high_order.py) with and without kernels
+(``OBSFMU_KERNELS=python``), the two sessions in this process, their runs interleaved (best of ``--repeat``; a run's
+set-up not counted, :func:`benchmarks.cosimulation_costs.per_step_case`).  And ``obsfmu run ship`` (the master,
+50 000 steps of three FMUs) with and without kernels, as wall time of the process.
 
     python benchmarks/step_kernels.py --reference-fmus ~/src/Reference-FMUs [--fmusim PATH]
 
@@ -150,6 +153,35 @@ def per_step(fmusim: str, fmu: Path, step: float, steps: tuple[int, int], repeat
     return (times[1] - times[0]) / (steps[1] - steps[0]) * 1e6
 
 
+def master_per_step(repeat: int, work: Path) -> list[tuple[str, float, float]]:
+    """``(case, us per step with kernels, us per step on the Python path)`` through the master (module docstring)."""
+    sys.path.insert(0, str(ROOT))
+    from benchmarks.cosimulation_costs import CHAIN_OBSERVER, per_step_case
+    from benchmarks.high_order import chain_config, input_system
+    from obsfmu.fmus.config import design_from_config
+    from obsfmu.fmus.scenarios import get
+    ship = get("ship")
+    cases = [("ship", ship.definitions(), ship.components, ship.connections, ship.step)]
+    for n in (2, 5, 10, 20, 50):
+        definitions, components, connections = input_system(design_from_config(chain_config(n, CHAIN_OBSERVER(n))))
+        cases.append((f"chain n = {n}", definitions, components, connections, 1e-3))
+    rows = []
+    for label, definitions, components, connections, step in cases:
+        paths = {}
+        for kernels in ("python", "c"):                    # the environment is read when an instance is made
+            os.environ["OBSFMU_KERNELS"] = kernels
+            paths[kernels] = per_step_case(label, definitions, components, connections, step, work / "master")
+        os.environ.pop("OBSFMU_KERNELS")
+        best = {"c": float("inf"), "python": float("inf")}
+        for _ in range(repeat):
+            for kernels, steps in (("c", 20000), ("python", 2000)):
+                best[kernels] = min(best[kernels], paths[kernels][1]["fmu"](steps))
+        for session, _ in paths.values():
+            session.close()
+        rows.append((label, best["c"] * 1e6, best["python"] * 1e6))
+    return rows
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--reference-fmus", type=Path, help="a checkout of github.com/modelica/Reference-FMUs")
@@ -213,6 +245,9 @@ def main() -> None:
         for label, cost, bare in rows:
             ratios = (f"{cost / base[1]:.1f}", f"{bare / base[2]:.0f}") if base else ("-", "-")
             print(f"| {label} | {cost:.2f} | {ratios[0]} | {bare:.3f} | {ratios[1]} |")
+        print("\n| through the master, CPU per step | kernels, us | Python path, us | ratio |\n|---|---|---|---|")
+        for label, fast, slow in master_per_step(args.repeat, work):
+            print(f"| {label} | {fast:.1f} | {slow:.1f} | {slow / fast:.1f}x |")
         env = dict(os.environ)
         master = {}
         for kernels in ("c", "python"):
