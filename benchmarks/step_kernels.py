@@ -156,10 +156,11 @@ def per_step(fmusim: str, fmu: Path, step: float, steps: tuple[int, int], repeat
 def master_per_step(repeat: int, work: Path) -> list[tuple[str, float, float]]:
     """``(case, us per step with kernels, us per step on the Python path)`` through the master (module docstring)."""
     sys.path.insert(0, str(ROOT))
-    from benchmarks.cosimulation_costs import CHAIN_OBSERVER, per_step_case
-    from benchmarks.high_order import chain_config, input_system
     from obsfmu.fmus.config import design_from_config
     from obsfmu.fmus.scenarios import get
+
+    from benchmarks.cosimulation_costs import CHAIN_OBSERVER, per_step_case
+    from benchmarks.high_order import chain_config, input_system
     ship = get("ship")
     cases = [("ship", ship.definitions(), ship.components, ship.connections, ship.step)]
     for n in (2, 5, 10, 20, 50):
