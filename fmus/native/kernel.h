@@ -442,7 +442,7 @@ static int kernel_step(KernelImage *k, double t, double h)
                 : k->kind == KK_EXPRESSION ? kernel_expression(k, t, h, w0, dw, next, work)
                 : k->kind == KK_LTV        ? kernel_ltv(k, t, h, w0, dw, next, work)
                 : k->kind == KK_LTV_PLANT  ? kernel_ltv_plant(k, t, h, w0, dw, next, work)
-                                           : kernel_noise_filter(k, t, h, next);
+                                           : kernel_noise_filter(k, t, h, next, work);
     if (taken <= 0) return taken;
     if (kernel_outputs(k, t + h, next, end, out) && next[(size_t)k->settings[KT_X_NOTED]] == 0.0)
         return 0; /* converged held at 0 by the step for the first time: the slave says so (in Python) */

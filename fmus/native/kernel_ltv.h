@@ -640,8 +640,8 @@ static int kernel_ltv(KernelImage *k, double t, double h, const double *w0, cons
 /* The settings of an LTV plant's image (= observers.ltv.kernel.PLANT_SETTINGS) */
 enum {
     KQ_N, KQ_P, KQ_DEGREE, KQ_F_TIME, KQ_C_VARIES, KQ_MAX_SUBSTEP, KQ_MAX_DY, KQ_BUDGET, KQ_SIGNAL_BOUND, KQ_INPUT_U, KQ_STEP_RATE,
-    KQ_X_X, KQ_X_U, KQ_X_LONGEST, KQ_X_NOTED, KQ_X_SIZE, KQ_P_F, KQ_P_A, KQ_P_C, KQ_P_KBM, KQ_P_THETA, KQ_P_NOISE, KQ_P_SIZE,
-    KQ_COUNT
+    KQ_X_X, KQ_X_U, KQ_X_LONGEST, KQ_X_NOTED, KQ_X_SIZE, KQ_P_F, KQ_P_A, KQ_P_C, KQ_P_KBM, KQ_P_THETA, KQ_P_NOISE,
+    KQ_P_SIZE, KQ_COUNT
 };
 
 static Ltv kq_of(const KernelImage *k)
@@ -671,7 +671,8 @@ static int kq_fits(const KernelImage *k)
         (size_t)s[KQ_X_X] + n > k->n || (size_t)s[KQ_X_U] + 2 * L.d + 3 > k->n || (size_t)s[KQ_X_NOTED] >= k->n ||
         (size_t)s[KQ_P_SIZE] != k->parameters || (size_t)s[KQ_P_A] > k->parameters ||
         (size_t)s[KQ_P_C] + (L.c_varies ? 0 : n) > k->parameters || (size_t)s[KQ_P_KBM] + n * (2 + L.np) > k->parameters ||
-        (size_t)s[KQ_P_THETA] + L.full > k->parameters || (size_t)s[KQ_P_NOISE] + 3 > k->parameters || s[KQ_INPUT_U] >= (double)k->m || k->q != 1 + n + L.full)
+        (size_t)s[KQ_P_THETA] + L.full > k->parameters || (size_t)s[KQ_P_NOISE] + 3 > k->parameters ||
+        s[KQ_INPUT_U] >= (double)k->m || k->q != 1 + n + L.full)
         return 0;
     return 5 * n <= 7 * k->n + k->m;
 }

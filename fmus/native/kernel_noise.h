@@ -19,8 +19,6 @@ enum {
     KN_ORDER, KN_STREAMS, KN_BUDGET, KN_DT, KN_INPUT_U, KN_P_AD, KN_P_BD, KN_X_LONGEST, KN_X_NOTED, KN_X_SIZE,
     KN_COUNT
 };
-#define KN_MAX_STREAMS 64
-
 static int kn_fits(const KernelImage *k)
 {
     const double *s = k->settings;
@@ -28,7 +26,7 @@ static int kn_fits(const KernelImage *k)
         if (!(s[i] == s[i])) return 0;
     size_t order = (size_t)s[KN_ORDER], streams = (size_t)s[KN_STREAMS];
     int added = s[KN_INPUT_U] >= 0.0;
-    return (order == 1 || order == 2) && streams >= 1 && streams <= KN_MAX_STREAMS && s[KN_DT] > 0.0 &&
+    return (order == 1 || order == 2) && streams >= 1 && s[KN_DT] > 0.0 &&
            (size_t)s[KN_X_SIZE] == k->n && 1 + order * streams + 2 == k->n && k->q == streams &&
            (size_t)s[KN_P_AD] == 5 && (size_t)s[KN_P_BD] == 5 + order * order &&
            (size_t)s[KN_P_BD] + order == k->parameters &&
@@ -55,12 +53,13 @@ static int kn_outputs(const KernelImage *k, double t, const double *x, const dou
     return 0;
 }
 
-/* One communication step from t of size h: the cache forward to the interval of t + h; 1 taken, 0 Python's */
-static int kernel_noise_filter(KernelImage *k, double t, double h, double *next)
+/* One communication step from t of size h: the cache forward to the interval of t + h; 1 taken, 0 Python's.
+ * work: the image's scratch after next (7 n doubles, n = 3 + order streams): w_k and the new state. */
+static int kernel_noise_filter(KernelImage *k, double t, double h, double *next, double *work)
 {
     const double *s = k->settings, *Ad = k->p + (size_t)s[KN_P_AD], *Bd = k->p + (size_t)s[KN_P_BD];
     size_t order = (size_t)s[KN_ORDER], streams = (size_t)s[KN_STREAMS];
-    double target = kn_interval(t + h, s[KN_DT]), none = 0.0, white[KN_MAX_STREAMS], state[2 * KN_MAX_STREAMS];
+    double target = kn_interval(t + h, s[KN_DT]), none = 0.0, *white = work, *state = work + streams;
     memcpy(next, k->x, k->n * sizeof *next);
     if (k->p[0] == 0.0) return 1;                        /* std 0: zeros, the filter untouched (Noise.sample) */
     double reached = next[0];

@@ -251,11 +251,13 @@ def test_signal_source_equals_python_path(monkeypatch, tmp_path):
     ("noise_source", {"cutoff_hz": 5.0, "seed": 1, "sample_interval": 2e-3}),
     ("added_noise", {"cutoff_hz": 3.0, "filter_order": 2, "size": 3, "sample_interval": 5e-3,
                      "distribution": "uniform"}),
-    ("added_noise", {"cutoff_hz": 3.0, "std": 0.0})])
+    ("added_noise", {"cutoff_hz": 3.0, "std": 0.0}),
+    ("noise_source", {"cutoff_hz": 2.0, "size": 70, "sample_interval": 1e-3})])
 def test_noise_equals_python_path_draw_for_draw(monkeypatch, tmp_path, kind, settings):
     """Noise steps in C, its values the Python path's to the bit: white (Gaussian and uniform, one and two streams,
     alone and added to a connection, std 0), its draws numpy's (observers/random_stream.py); band-limited (first
-    and second order, three streams), its filter summed in the Python path's order (plants.noise.filter_step)."""
+    and second order, three and seventy streams), its filter summed in the Python path's order
+    (plants.noise.filter_step)."""
     from obsfmu.fmus.builder import build_fmu
     from obsfmu.fmus.runtime.kinds import noise
     fmu = build_fmu(getattr(noise, f"{kind}_definition")(kind, **settings), tmp_path)
