@@ -14,7 +14,7 @@ import shutil
 import numpy as np
 import pytest
 
-from obsfmu.observers.expressions import Names, Source, compile_vector
+from obsfmu.observers.expressions import ExpressionError, Names, Source, compile_vector
 from obsfmu.observers.expressions_c import c_source
 from obsfmu.observers.random_stream import MAX_DRAWS, WHOLE_LIMIT, rand, randn, ziggurat_tables
 
@@ -115,5 +115,5 @@ def test_a_far_interval_and_a_late_draw_are_numpys(draws):
 def test_the_expression_language_names_them_and_checks_their_arguments():
     noise = compile_vector(["0.1 * randn(p[1], floor(t / 0.01), 0)"], Names(p=1), Source("sensor.h"))
     assert noise.of_lists(0.123, [], [], [4.0])[0] == 0.1 * np.random.default_rng((4, 12)).standard_normal()
-    with pytest.raises(Exception, match="randn takes 3 arguments"):
+    with pytest.raises(ExpressionError, match="randn takes 3 arguments"):
         compile_vector(["randn(1, 2)"], Names(), Source("sensor.h"))
