@@ -206,6 +206,18 @@ static int ex_stream(double seed, double k, double j, ex_pcg64 *g)   /* 0: outsi
         return 0;
     ex_pcg64_seed(g, (uint64_t)seed, (uint64_t)k);
     return 1;
+}
+
+static double ex_draw(double seed, double k, double j, double (*next)(ex_pcg64 *))   /* the j-th draw, NaN outside */
+{
+    ex_pcg64 g;
+    double value = NAN;
+    int i;
+    if (!ex_stream(seed, k, j, &g))
+        return NAN;
+    for (i = 0; i <= (int)j; i++)
+        value = next(&g);
+    return value;
 }"""
 
 #: ``randn`` in C: the ziggurat, reading ``ex_ziggurat`` (the 768 doubles of :func:`ziggurat_tables`)
@@ -238,28 +250,14 @@ static double ex_standard_normal(ex_pcg64 *g)             /* the ziggurat: k_i, 
 
 static double ex_randn(double seed, double k, double j)
 {
-    ex_pcg64 g;
-    double value = NAN;
-    int i;
-    if (!ex_stream(seed, k, j, &g))
-        return NAN;
-    for (i = 0; i <= (int)j; i++)
-        value = ex_standard_normal(&g);
-    return value;
+    return ex_draw(seed, k, j, ex_standard_normal);
 }"""
 
 #: ``rand`` in C
 C_RAND = """\
 static double ex_rand(double seed, double k, double j)
 {
-    ex_pcg64 g;
-    double value = NAN;
-    int i;
-    if (!ex_stream(seed, k, j, &g))
-        return NAN;
-    for (i = 0; i <= (int)j; i++)
-        value = ex_pcg64_double(&g);
-    return value;
+    return ex_draw(seed, k, j, ex_pcg64_double);
 }"""
 
 C_STREAM = C_STREAM.replace("WHOLE_LIMIT_VALUE", WHOLE_LIMIT.hex()).replace("MAX_DRAWS_VALUE", float(MAX_DRAWS).hex())
